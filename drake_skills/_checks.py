@@ -1,0 +1,88 @@
+"""Input validation shared by every layer (imports nothing from the package).
+
+Every check raises ``ValueError`` with a message a user can act on: it names
+the argument (and, through ``where``, the file or demonstration) and says what
+is wrong, e.g. ``"demo 'x.npz': human has NaN at rows 12..15"``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def _prefix(where: str | None) -> str:
+    return f"{where}: " if where else ""
+
+
+def _rows_text(rows: np.ndarray) -> str:
+    """Compress sorted row indices into ``"3, 7..9"``."""
+    rows = np.unique(rows)
+    parts = []
+    start = prev = int(rows[0])
+    for r in rows[1:]:
+        r = int(r)
+        if r == prev + 1:
+            prev = r
+            continue
+        parts.append(f"{start}" if start == prev else f"{start}..{prev}")
+        start = prev = r
+    parts.append(f"{start}" if start == prev else f"{start}..{prev}")
+    text = ", ".join(parts[:5])
+    return text + (", ..." if len(parts) > 5 else "")
+
+
+def as_finite_array(x, name: str, *, ndim: int | None = None, shape=None,
+                    min_rows: int | None = None, where: str | None = None) -> np.ndarray:
+    """Convert ``x`` to a float64 array and validate it.
+
+    Parameters
+    ----------
+    x : array_like
+    name : str
+        Name used in error messages.
+    ndim : int, optional
+        Required number of dimensions.
+    shape : tuple, optional
+        Required shape; ``None`` entries match any size.
+    min_rows : int, optional
+        Minimum length of axis 0.
+    where : str, optional
+        Context prefix for messages (file or demonstration name).
+    """
+    p = _prefix(where)
+    try:
+        a = np.asarray(x, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{p}{name} is not numeric ({exc})") from None
+    if ndim is not None and a.ndim != ndim:
+        raise ValueError(f"{p}{name} must have {ndim} dimension(s), got shape {a.shape}")
+    if shape is not None:
+        if a.ndim != len(shape) or any(s is not None and s != d for s, d in zip(shape, a.shape)):
+            want = "(" + ", ".join("any" if s is None else str(s) for s in shape) + ")"
+            raise ValueError(f"{p}{name} must have shape {want}, got {a.shape}")
+    if min_rows is not None and (a.ndim == 0 or a.shape[0] < min_rows):
+        n = 0 if a.ndim == 0 else a.shape[0]
+        raise ValueError(f"{p}{name} is too short: {n} sample(s), need at least {min_rows}")
+    bad = ~np.isfinite(a)
+    if bad.any():
+        kind = "NaN" if np.isnan(a[bad]).any() else "inf"
+        if a.ndim >= 1:
+            rows = np.nonzero(bad.reshape(a.shape[0], -1).any(axis=1))[0]
+            raise ValueError(f"{p}{name} has {kind} at rows {_rows_text(rows)}")
+        raise ValueError(f"{p}{name} is {kind}")
+    return a
+
+
+def check_increasing(t: np.ndarray, name: str = "t", where: str | None = None) -> None:
+    """Raise unless ``t`` is strictly increasing."""
+    d = np.diff(t)
+    if (d <= 0).any():
+        i = int(np.nonzero(d <= 0)[0][0])
+        raise ValueError(f"{_prefix(where)}{name} is not strictly increasing: "
+                         f"{name}[{i}]={t[i]:g} then {name}[{i + 1}]={t[i + 1]:g}")
+
+
+def check_positive(value: float, name: str) -> float:
+    value = float(value)
+    if not np.isfinite(value) or value <= 0:
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+    return value

@@ -1,0 +1,89 @@
+"""The ``Demonstration`` type: one coupled human (+ robot) trajectory."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from drake_skills._checks import as_finite_array, check_increasing
+
+#: Fewest samples a demonstration may have (the basis fit needs a few points).
+MIN_SAMPLES = 5
+
+
+@dataclass(frozen=True, eq=False)
+class Demonstration:
+    """One demonstration: the observed agent (human) and, optionally, the robot.
+
+    Parameters
+    ----------
+    t : array, shape (T,)
+        Time stamps in seconds, strictly increasing.
+    human : array, shape (T, D_h)
+        Observed-agent positions (wrist in metres, D_h = 3; pen tip, D_h = 2).
+    robot : array, shape (T, D_r), optional
+        Controlled-agent positions (joint angles in radians), or None for
+        human-only data (letters).
+    task, subject : str, optional
+        Labels, used only by evaluation; the library never reads them.
+    name : str, optional
+        Where the demonstration came from (file name), used in error messages.
+
+    All arrays are validated (finite, matching lengths, monotonic time, at
+    least ``MIN_SAMPLES`` samples) and stored read-only.
+    """
+
+    t: np.ndarray
+    human: np.ndarray
+    robot: np.ndarray | None = None
+    task: str | None = None
+    subject: str | None = None
+    name: str | None = field(default=None, compare=False)
+
+    def __post_init__(self):
+        where = f"demo {self.name!r}" if self.name else "demonstration"
+        t = as_finite_array(self.t, "t", ndim=1, min_rows=MIN_SAMPLES, where=where)
+        check_increasing(t, "t", where=where)
+        human = as_finite_array(self.human, "human", ndim=2, where=where)
+        if human.shape[0] != t.shape[0]:
+            raise ValueError(f"{where}: human has {human.shape[0]} rows but t has {t.shape[0]}")
+        if human.shape[1] < 1:
+            raise ValueError(f"{where}: human has no columns")
+        robot = None
+        if self.robot is not None:
+            robot = as_finite_array(self.robot, "robot", ndim=2, where=where)
+            if robot.shape[0] != t.shape[0]:
+                raise ValueError(f"{where}: robot has {robot.shape[0]} rows but t has {t.shape[0]}")
+            if robot.shape[1] < 1:
+                raise ValueError(f"{where}: robot has no columns")
+        for a in (t, human, robot):
+            if a is not None:
+                a.setflags(write=False)
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "human", human)
+        object.__setattr__(self, "robot", robot)
+        for label in ("task", "subject"):
+            v = getattr(self, label)
+            if v is not None:
+                object.__setattr__(self, label, str(v))
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.t.shape[0])
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1] - self.t[0])
+
+    @property
+    def dim_human(self) -> int:
+        return int(self.human.shape[1])
+
+    @property
+    def dim_robot(self) -> int:
+        return 0 if self.robot is None else int(self.robot.shape[1])
+
+    def __repr__(self) -> str:
+        r = "None" if self.robot is None else f"{self.robot.shape}"
+        return (f"Demonstration(T={self.n_samples}, human={self.human.shape}, robot={r}, "
+                f"task={self.task!r}, subject={self.subject!r})")

@@ -1,0 +1,201 @@
+"""Gaussian helpers in the log domain: Cholesky factors, log-densities,
+Mahalanobis distances, conditioning, moment matching and KL divergences.
+
+Weight spaces are large (30 to 200 dimensions), so raw densities underflow;
+everything here works with log-densities through Cholesky factors.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import cho_solve, solve_triangular
+from scipy.special import logsumexp
+
+from drake_skills._checks import as_finite_array
+
+_LOG_2PI = np.log(2.0 * np.pi)
+
+
+def check_random_state(random_state) -> np.random.Generator:
+    """Normalize ``None | int | Generator`` to a ``numpy.random.Generator``."""
+    if isinstance(random_state, np.random.Generator):
+        return random_state
+    if random_state is None or isinstance(random_state, (int, np.integer)):
+        return np.random.default_rng(random_state)
+    raise ValueError(f"random_state must be None, an int or a numpy Generator, got {type(random_state).__name__}")
+
+
+def symmetrize(S: np.ndarray) -> np.ndarray:
+    return 0.5 * (S + S.T)
+
+
+def cholesky(S, *, jitter: float = 1e-10, max_tries: int = 8) -> np.ndarray:
+    """Lower Cholesky factor of a symmetric positive (semi-)definite matrix.
+
+    Adds ``jitter * mean(diag)``, growing tenfold per try, only when the plain
+    factorization fails.
+
+    Raises
+    ------
+    ValueError
+        If the matrix is not finite, not square, or not positive definite even
+        with jitter.
+    """
+    S = np.asarray(S, dtype=float)
+    if S.ndim != 2 or S.shape[0] != S.shape[1]:
+        raise ValueError(f"covariance must be square, got shape {S.shape}")
+    if not np.isfinite(S).all():
+        raise ValueError("covariance has NaN or inf entries")
+    S = symmetrize(S)
+    try:
+        return np.linalg.cholesky(S)
+    except np.linalg.LinAlgError:
+        pass
+    scale = max(float(np.mean(np.abs(np.diag(S)))), 1e-300)
+    eye = np.eye(S.shape[0])
+    for k in range(max_tries):
+        try:
+            return np.linalg.cholesky(S + jitter * 10.0 ** k * scale * eye)
+        except np.linalg.LinAlgError:
+            continue
+    raise ValueError("covariance is not positive definite (Cholesky failed even with jitter)")
+
+
+def mahalanobis_sq(x, mean, L) -> np.ndarray:
+    """Squared Mahalanobis distance(s) of ``x`` to ``N(mean, L L^T)``.
+
+    Parameters
+    ----------
+    x : array, shape (d,) or (n, d)
+    mean : array, shape (d,)
+    L : array, shape (d, d)
+        Lower Cholesky factor of the covariance.
+
+    Returns
+    -------
+    d2 : float or array, shape (n,)
+    """
+    x = np.asarray(x, dtype=float)
+    diff = (x - mean).T  # (d,) or (d, n)
+    z = solve_triangular(L, diff, lower=True, check_finite=False)
+    return np.sum(z * z, axis=0)
+
+
+def log_density(x, mean, L) -> np.ndarray:
+    """``log N(x | mean, L L^T)`` for one point (d,) or many (n, d)."""
+    d = L.shape[0]
+    logdet = 2.0 * np.sum(np.log(np.diag(L)))
+    return -0.5 * (d * _LOG_2PI + logdet + mahalanobis_sq(x, mean, L))
+
+
+def gmm_log_density(x, weights, means, chols) -> np.ndarray:
+    """``log sum_k weights_k N(x | means_k, chols_k chols_k^T)`` for x (n, d)."""
+    x = np.atleast_2d(np.asarray(x, dtype=float))
+    lw = np.log(np.asarray(weights, dtype=float))
+    comp = np.stack([log_density(x, m, L) for m, L in zip(means, chols)], axis=1)  # (n, K)
+    return logsumexp(comp + lw[None, :], axis=1)
+
+
+def condition_gaussian(mean, cov, i_obs, x_obs, obs_cov=None):
+    """Closed-form Gaussian conditional of the unobserved given the observed entries.
+
+    Parameters
+    ----------
+    mean : array, shape (d,)
+    cov : array, shape (d, d)
+    i_obs : array of int or bool mask
+        Indices of the observed entries.
+    x_obs : array, shape (m,)
+        Observed values.
+    obs_cov : array, shape (m, m), optional
+        Observation noise added to the observed block.
+
+    Returns
+    -------
+    mean_c : array, shape (d - m,)
+    cov_c : array, shape (d - m, d - m)
+    """
+    mean = np.asarray(mean, float)
+    cov = np.asarray(cov, float)
+    idx = np.arange(mean.shape[0])
+    obs = np.zeros(mean.shape[0], bool)
+    obs[np.asarray(i_obs)] = True
+    o, u = idx[obs], idx[~obs]
+    S_oo = cov[np.ix_(o, o)]
+    if obs_cov is not None:
+        S_oo = S_oo + obs_cov
+    L = cholesky(S_oo)
+    K = cho_solve((L, True), cov[np.ix_(o, u)]).T  # (u, o)
+    mean_c = mean[u] + K @ (np.asarray(x_obs, float) - mean[o])
+    cov_c = symmetrize(cov[np.ix_(u, u)] - K @ cov[np.ix_(o, u)])
+    return mean_c, cov_c
+
+
+def merge_moments(s_i: float, mu_i, S_i, s_j: float, mu_j, S_j):
+    """Moment-matched merge of two Gaussians weighted by their supports.
+
+    This is what the garbled Eq. (11) intends: the mean and covariance of the
+    mixture ``(s_i N(mu_i, S_i) + s_j N(mu_j, S_j)) / (s_i + s_j)``,
+
+        mu  = (s_i mu_i + s_j mu_j) / (s_i + s_j)
+        S   = (s_i (S_i + mu_i mu_i^T) + s_j (S_j + mu_j mu_j^T)) / (s_i + s_j) - mu mu^T
+            = (s_i S_i + s_j S_j) / (s_i + s_j) + s_i s_j (mu_i - mu_j)(mu_i - mu_j)^T / (s_i + s_j)^2
+
+    (the second form is used: it is PSD by construction). If each component
+    holds the biased sample moments of its samples, the result equals the
+    biased moments of the pooled samples.
+    """
+    s = s_i + s_j
+    a, b = s_i / s, s_j / s
+    mu = a * np.asarray(mu_i) + b * np.asarray(mu_j)
+    dm = np.asarray(mu_i) - np.asarray(mu_j)
+    S = a * np.asarray(S_i) + b * np.asarray(S_j) + a * b * np.outer(dm, dm)
+    return mu, symmetrize(S)
+
+
+def kl_gaussian(mu0, S0, mu1, S1) -> float:
+    """Closed-form ``KL(N(mu0, S0) || N(mu1, S1))``."""
+    mu0, mu1 = np.asarray(mu0, float), np.asarray(mu1, float)
+    L0, L1 = cholesky(S0), cholesky(S1)
+    d = mu0.shape[0]
+    M = solve_triangular(L1, L0, lower=True, check_finite=False)  # L1^{-1} L0
+    trace = np.sum(M * M)
+    maha = mahalanobis_sq(mu0, mu1, L1)
+    logdet = 2.0 * (np.sum(np.log(np.diag(L1))) - np.sum(np.log(np.diag(L0))))
+    return float(0.5 * (trace + maha - d + logdet))
+
+
+def sample_mixture(weights, means, covs, n: int, random_state=None) -> np.ndarray:
+    """Draw ``n`` samples from a Gaussian mixture, shape (n, d)."""
+    rng = check_random_state(random_state)
+    weights = np.asarray(weights, float)
+    counts = rng.multinomial(n, weights / weights.sum())
+    out = [rng.multivariate_normal(means[k], covs[k], size=c, method="cholesky")
+           for k, c in enumerate(counts) if c > 0]
+    x = np.concatenate(out)
+    return x[rng.permutation(n)]
+
+
+def mc_kl_mixtures(p, q, n_samples: int = 2000, random_state=None) -> float:
+    """Monte-Carlo ``KL(p || q)`` between two Gaussian mixtures.
+
+    Parameters
+    ----------
+    p, q : tuple (weights (K,), means (K, d), covs (K, d, d))
+    n_samples : int
+        Samples drawn from ``p``; the estimate's standard error falls as
+        ``1/sqrt(n_samples)``.
+    random_state : None, int or Generator
+    """
+    wp, mp, Sp = p
+    wq, mq, Sq = q
+    x = sample_mixture(wp, mp, Sp, n_samples, random_state)
+    lp = gmm_log_density(x, wp, mp, [cholesky(S) for S in Sp])
+    lq = gmm_log_density(x, wq, mq, [cholesky(S) for S in Sq])
+    return float(np.mean(lp - lq))
+
+
+def validate_gaussian(mean, cov, name: str = "Gaussian"):
+    """Validate and return ``(mean (d,), cov (d, d))``."""
+    mean = as_finite_array(mean, f"{name} mean", ndim=1)
+    cov = as_finite_array(cov, f"{name} covariance", shape=(mean.shape[0], mean.shape[0]))
+    return mean, cov

@@ -1,0 +1,318 @@
+"""Interaction ProMPs: a Gaussian over stacked human and robot weights.
+
+The weight vector is ``w = [w_h; w_r]`` with ``w_h`` the ``D_h * N_h`` human
+weights and ``w_r`` the ``D_r * N_r`` robot weights, each stacked per
+dimension (Eq. 4).  Human and robot have their own basis (a 7-joint robot
+trajectory needs more basis functions than a wrist path).  Conditioning on
+observed human samples is Eq. (13) with the observation matrix ``H_t`` over
+the human rows and the observed phases only, so a prefix of the motion works.
+
+The linear algebra of Eq. (13) is done in the ``D_h * N_h``-dimensional human
+weight space, never in the ``T_obs * D_h`` observation space: with
+``G = H H^T = I_D (x) Phi_o^T Phi_o``, ``S = Sigma_hh`` and ``u = H r``,
+the push-through identity gives
+
+    H (sigma^2 I + H^T S H)^{-1}     = (sigma^2 I + G S)^{-1} H
+    mu_new    = mu + Sigma_{:,h} (sigma^2 I + G S)^{-1} u
+    Sigma_new = Sigma - Sigma_{:,h} (sigma^2 I + G S)^{-1} G Sigma_{h,:}
+
+which equals Eq. (13) exactly and costs O(T_obs D_h N_h + (D_h N_h)^3).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from drake_skills._checks import as_finite_array, check_positive
+from drake_skills.promp.basis import GaussianBasis, phases, ridge_weights, trajectory_covariance
+from drake_skills.promp.gaussian import check_random_state, cholesky, symmetrize
+
+_LOG_2PI = np.log(2.0 * np.pi)
+
+
+def _observation_terms(mean_h, cov_hh, Phi_o, y_obs, noise_var):
+    """Shared pieces of conditioning and the marginal likelihood.
+
+    Returns ``G (h, h)``, ``u = H r (h,)``, ``r (m, D)``, ``A = sigma^2 I + G S``.
+    """
+    D = y_obs.shape[1]
+    N = Phi_o.shape[1]
+    PtP = Phi_o.T @ Phi_o
+    G = np.kron(np.eye(D), PtP)
+    r = y_obs - Phi_o @ mean_h.reshape(D, N).T  # (m, D) residual of the prior mean
+    u = (Phi_o.T @ r).T.reshape(-1)  # H r, stacked per dimension
+    A = noise_var * np.eye(D * N) + G @ cov_hh
+    return G, u, r, A
+
+
+def condition_on_observations(mean, cov, Phi_o, y_obs, noise_var: float):
+    """Condition ``N(mean, cov)`` over ``[w_h; ...]`` on observed human samples (Eq. 13).
+
+    Parameters
+    ----------
+    mean : array, shape (d,)
+        Stacked weights; the first ``D * N`` entries are the observed agent's.
+    cov : array, shape (d, d)
+    Phi_o : array, shape (m, N)
+        Human basis at the observed phases.
+    y_obs : array, shape (m, D)
+        Observed human positions.
+    noise_var : float
+        Observation noise variance sigma_o (Sigma_o = sigma_o I).
+
+    Returns
+    -------
+    mean_new : array, shape (d,)
+    cov_new : array, shape (d, d)
+    """
+    h = y_obs.shape[1] * Phi_o.shape[1]
+    G, u, _, A = _observation_terms(mean[:h], cov[:h, :h], Phi_o, y_obs, noise_var)
+    C = cov[:, :h]
+    mean_new = mean + C @ np.linalg.solve(A, u)
+    cov_new = cov - C @ np.linalg.solve(A, G) @ C.T
+    return mean_new, symmetrize(cov_new)
+
+
+def observation_log_likelihood(mean_h, cov_hh, Phi_o, y_obs, noise_var: float):
+    """Marginal ``log N(vec(y_obs) | H^T mu_h, sigma^2 I + H^T Sigma_hh H)``.
+
+    Returns
+    -------
+    loglik : float
+    d2 : float
+        Squared Mahalanobis distance of the observations (chi-square with
+        ``m * D`` degrees of freedom under the model).
+    n_obs : int
+        ``m * D``, the number of observed scalars.
+    """
+    G, u, r, A = _observation_terms(mean_h, cov_hh, Phi_o, y_obs, noise_var)
+    m = r.size
+    a = np.linalg.solve(A, u)  # H (sigma^2 I + H^T S H)^{-1} r
+    d2 = (np.sum(r * r) - u @ cov_hh @ a) / noise_var
+    sign, logdet = np.linalg.slogdet(np.eye(G.shape[0]) + cov_hh @ G / noise_var)
+    loglik = -0.5 * (m * (_LOG_2PI + np.log(noise_var)) + logdet + d2)
+    return float(loglik), float(d2), int(m)
+
+
+class InteractionProMP:
+    """A Gaussian over stacked human and robot ProMP weights ``[w_h; w_r]``.
+
+    Parameters
+    ----------
+    dim_human : int
+        D_h, dimensions of the observed agent.
+    dim_robot : int
+        D_r, dimensions of the controlled agent (0 for a human-only ProMP).
+    basis_human, basis_robot : GaussianBasis
+    ridge : float
+        Ridge factor of the weight regression (Eq. 3).
+    observation_noise : float
+        sigma_o of Eq. (13), the variance of an observed human sample, in the
+        units of the human trajectory (normalized units squared in the library).
+
+    Attributes
+    ----------
+    mean_ : array, shape (D_h N_h + D_r N_r,)
+    cov_ : array, shape (d, d)
+    n_demos_ : int
+    """
+
+    def __init__(self, dim_human: int, dim_robot: int = 0, *, basis_human: GaussianBasis | None = None,
+                 basis_robot: GaussianBasis | None = None, ridge: float = 1e-6,
+                 observation_noise: float = 0.25):
+        if int(dim_human) < 1 or int(dim_robot) < 0:
+            raise ValueError(f"need dim_human >= 1 and dim_robot >= 0, got {dim_human}, {dim_robot}")
+        self.dim_human = int(dim_human)
+        self.dim_robot = int(dim_robot)
+        self.basis_human = basis_human or GaussianBasis(10)
+        self.basis_robot = basis_robot or GaussianBasis(20)
+        self.ridge = float(ridge)
+        self.observation_noise = check_positive(observation_noise, "observation_noise")
+
+    # -- sizes -------------------------------------------------------------
+    @property
+    def n_human(self) -> int:
+        """Number of human weights, D_h * N_h."""
+        return self.dim_human * self.basis_human.n_basis
+
+    @property
+    def n_robot(self) -> int:
+        """Number of robot weights, D_r * N_r."""
+        return self.dim_robot * self.basis_robot.n_basis
+
+    @property
+    def n_weights(self) -> int:
+        return self.n_human + self.n_robot
+
+    def _check_fitted(self):
+        if not hasattr(self, "mean_"):
+            raise ValueError("this InteractionProMP is not fitted yet: call fit() or from_moments()")
+
+    # -- weights -----------------------------------------------------------
+    def weights(self, human, robot=None) -> np.ndarray:
+        """Stacked weights of one demonstration sampled at uniform phases.
+
+        Parameters
+        ----------
+        human : array, shape (T_h, D_h)
+        robot : array, shape (T_r, D_r), required iff dim_robot > 0
+
+        Returns
+        -------
+        w : array, shape (n_weights,)
+        """
+        human = as_finite_array(human, "human trajectory", shape=(None, self.dim_human), min_rows=2)
+        parts = [ridge_weights(human, self.basis_human, self.ridge)]
+        if self.dim_robot:
+            if robot is None:
+                raise ValueError("this InteractionProMP has a robot part: pass the robot trajectory")
+            robot = as_finite_array(robot, "robot trajectory", shape=(None, self.dim_robot), min_rows=2)
+            parts.append(ridge_weights(robot, self.basis_robot, self.ridge))
+        elif robot is not None:
+            raise ValueError("this InteractionProMP is human-only (dim_robot=0) but a robot trajectory was given")
+        return np.concatenate(parts)
+
+    def fit(self, humans, robots=None) -> "InteractionProMP":
+        """Maximum-likelihood fit from demonstrations sampled at uniform phases.
+
+        Parameters
+        ----------
+        humans : sequence of arrays, shape (T, D_h)
+        robots : sequence of arrays, shape (T, D_r), or None
+
+        Returns
+        -------
+        self
+        """
+        if len(humans) < 1:
+            raise ValueError("fit needs at least one demonstration")
+        if robots is None:
+            robots = [None] * len(humans)
+        if len(robots) != len(humans):
+            raise ValueError(f"{len(humans)} human but {len(robots)} robot trajectories")
+        W = np.stack([self.weights(h, r) for h, r in zip(humans, robots)])
+        return self.fit_weights(W)
+
+    def fit_weights(self, W, *, min_variance: float = 1e-6) -> "InteractionProMP":
+        """ML mean and (biased) covariance of stacked weights ``W (n, d)``.
+
+        ``min_variance`` is added to the diagonal so that a fit from fewer
+        demonstrations than dimensions stays positive definite.
+        """
+        W = as_finite_array(W, "weights", shape=(None, self.n_weights), min_rows=1)
+        mean = W.mean(axis=0)
+        diff = W - mean
+        cov = diff.T @ diff / W.shape[0] + min_variance * np.eye(self.n_weights)
+        return self._set(mean, cov, W.shape[0])
+
+    @classmethod
+    def from_moments(cls, mean, cov, dim_human: int, dim_robot: int = 0, **kwargs) -> "InteractionProMP":
+        """Wrap given weight moments (e.g. a library component)."""
+        p = cls(dim_human, dim_robot, **kwargs)
+        mean = as_finite_array(mean, "mean", shape=(p.n_weights,))
+        cov = as_finite_array(cov, "covariance", shape=(p.n_weights, p.n_weights))
+        return p._set(mean, cov, 0)
+
+    def _set(self, mean, cov, n):
+        self.mean_ = mean
+        self.cov_ = symmetrize(cov)
+        self.n_demos_ = n
+        return self
+
+    # -- trajectories -------------------------------------------------------
+    def _split_traj(self, n_steps: int):
+        self._check_fitted()
+        h = self.n_human
+        return h, self.basis_human.phi_uniform(n_steps), self.basis_robot.phi_uniform(n_steps)
+
+    def human_distribution(self, n_steps: int = 100):
+        """Human trajectory mean (T, D_h) and per-step covariance (T, D_h, D_h)."""
+        h, Phi_h, _ = self._split_traj(n_steps)
+        mean = Phi_h @ self.mean_[:h].reshape(self.dim_human, -1).T
+        cov = trajectory_covariance(self.cov_[:h, :h], self.basis_human, self.dim_human, n_steps=n_steps)
+        return mean, cov
+
+    def robot_distribution(self, n_steps: int = 100):
+        """Robot trajectory mean (T, D_r) and per-step covariance (T, D_r, D_r)."""
+        if not self.dim_robot:
+            raise ValueError("this InteractionProMP has no robot part (dim_robot=0)")
+        h, _, Phi_r = self._split_traj(n_steps)
+        mean = Phi_r @ self.mean_[h:].reshape(self.dim_robot, -1).T
+        cov = trajectory_covariance(self.cov_[h:, h:], self.basis_robot, self.dim_robot, n_steps=n_steps)
+        return mean, cov
+
+    def sample(self, n: int, n_steps: int = 100, random_state=None):
+        """Sample ``n`` trajectory pairs.
+
+        Returns
+        -------
+        human : array, shape (n, n_steps, D_h)
+        robot : array, shape (n, n_steps, D_r) (empty last axis if dim_robot=0)
+        """
+        h, Phi_h, Phi_r = self._split_traj(n_steps)
+        rng = check_random_state(random_state)
+        L = cholesky(self.cov_)
+        W = self.mean_ + rng.standard_normal((n, self.n_weights)) @ L.T
+        human = np.einsum("tn,kdn->ktd", Phi_h, W[:, :h].reshape(n, self.dim_human, -1))
+        robot = np.einsum("tn,kdn->ktd", Phi_r, W[:, h:].reshape(n, self.dim_robot, -1))
+        return human, robot
+
+    # -- conditioning (Eq. 13) ----------------------------------------------
+    def _observations(self, human_obs, z_obs):
+        y = as_finite_array(human_obs, "observed human samples", shape=(None, self.dim_human), min_rows=1)
+        z = as_finite_array(z_obs, "observed phases", shape=(y.shape[0],))
+        return y, self.basis_human.phi(z)
+
+    def condition(self, human_obs, z_obs, observation_noise: float | None = None) -> "InteractionProMP":
+        """Posterior given human samples ``human_obs (m, D_h)`` at phases ``z_obs (m,)`` (Eq. 13).
+
+        Returns a new InteractionProMP; this one is unchanged.
+        """
+        self._check_fitted()
+        y, Phi_o = self._observations(human_obs, z_obs)
+        noise = self.observation_noise if observation_noise is None else check_positive(
+            observation_noise, "observation_noise")
+        mean, cov = condition_on_observations(self.mean_, self.cov_, Phi_o, y, noise)
+        post = InteractionProMP(self.dim_human, self.dim_robot, basis_human=self.basis_human,
+                                basis_robot=self.basis_robot, ridge=self.ridge, observation_noise=noise)
+        return post._set(mean, cov, self.n_demos_)
+
+    def condition_prefix(self, human_prefix, observed_fraction: float = 1.0,
+                         observation_noise: float | None = None) -> "InteractionProMP":
+        """Condition on samples at evenly spaced phases over ``[0, observed_fraction]``.
+
+        ``human_prefix (m, D_h)`` must already be resampled (e.g. by arc length)
+        so that its samples are evenly spaced over that phase interval.
+        """
+        f = float(observed_fraction)
+        if not 0 < f <= 1:
+            raise ValueError(f"observed_fraction must be in (0, 1], got {observed_fraction!r}")
+        y = as_finite_array(human_prefix, "observed human samples", shape=(None, self.dim_human), min_rows=2)
+        return self.condition(y, np.linspace(0.0, f, y.shape[0]), observation_noise)
+
+    def log_likelihood_human(self, human_obs, z_obs, observation_noise: float | None = None,
+                             cov_floor: float = 0.0):
+        """Marginal log-likelihood of human samples, their Mahalanobis d^2, and m*D_h.
+
+        ``cov_floor`` is added to the diagonal of the human weight covariance.
+        """
+        self._check_fitted()
+        y, Phi_o = self._observations(human_obs, z_obs)
+        noise = self.observation_noise if observation_noise is None else observation_noise
+        h = self.n_human
+        S = self.cov_[:h, :h] + cov_floor * np.eye(h)
+        return observation_log_likelihood(self.mean_[:h], S, Phi_o, y, noise)
+
+    def predict_robot(self, human_obs, z_obs=None, *, n_steps: int = 100, observation_noise: float | None = None):
+        """Robot trajectory distribution given observed human samples.
+
+        ``z_obs`` defaults to evenly spaced phases over [0, 1] (the full motion).
+
+        Returns
+        -------
+        mean : array, shape (n_steps, D_r)
+        cov : array, shape (n_steps, D_r, D_r)
+        """
+        y = np.asarray(human_obs, dtype=float)
+        if z_obs is None:
+            z_obs = phases(max(int(y.shape[0]) if y.ndim >= 1 else 0, 2))
+        return self.condition(y, z_obs, observation_noise).robot_distribution(n_steps)
