@@ -170,6 +170,8 @@ def trajectory_covariance(Sigma, basis: GaussianBasis, n_dims: int, z=None, n_st
     N = basis.n_basis
     Sigma = as_finite_array(Sigma, "covariance", shape=(n_dims * N, n_dims * N))
     Phi = basis.phi_uniform(n_steps) if z is None else basis.phi(z)
-    S = Sigma.reshape(n_dims, N, n_dims, N)
-    # cov[t, d, e] = sum_ij Phi[t, i] S[d, i, e, j] Phi[t, j]
-    return np.einsum("ti,diej,tj->tde", Phi, S, Phi, optimize=True)
+    # cov[t, d, e] = sum_ij Phi[t, i] S[d, i, e, j] Phi[t, j], as one matmul and a reduction
+    S = Sigma.reshape(n_dims, N, n_dims, N).transpose(1, 0, 2, 3).reshape(N, -1)  # (i, d*e*j)
+    tmp = (Phi @ S).reshape(-1, n_dims, n_dims, N)  # (t, d, e, j)
+    cov = np.einsum("tdej,tj->tde", tmp, Phi)
+    return 0.5 * (cov + cov.transpose(0, 2, 1))
