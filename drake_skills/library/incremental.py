@@ -391,6 +391,23 @@ class SkillLibrary:
                 return c
         raise KeyError(f"no component with id {component_id}; ids are {[c.id for c in self._components]}")
 
+    def as_mixture(self, part: str = "gating"):
+        """The library as a Gaussian mixture ``(weights (K,), means (K, d), covs (K, d, d))``.
+
+        ``part="gating"`` gives the mixture over human weights (Eq. 5, without
+        the evaluation floor); ``"expert"`` the one over stacked weights (Eq. 2).
+        """
+        self._check_fitted()
+        if part not in ("gating", "expert"):
+            raise ValueError(f"part must be 'gating' or 'expert', got {part!r}")
+        if not self._components:
+            raise ValueError("the library has no components")
+        d = self.n_human if part == "gating" else self._components[0].mean.shape[0]
+        s = np.array([c.support for c in self._components])
+        means = np.stack([c.mean[:d] for c in self._components])
+        covs = np.stack([c.cov[:d, :d] for c in self._components])
+        return s / s.sum(), means, covs
+
     def interaction_promp(self, component_id: int) -> InteractionProMP:
         """The Interaction ProMP of one component (a copy)."""
         c = self.component(component_id)

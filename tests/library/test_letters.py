@@ -1,0 +1,72 @@
+"""The letter experiment of Sec. 4.1 on real LASA handwriting data (issue 3's acceptance tests)."""
+import numpy as np
+import pytest
+
+from drake_skills import LibraryConfig, SkillLibrary
+from drake_skills.data.lasa import DEFAULT_LETTERS, lasa_workspace, load_lasa
+from drake_skills.library.batch import batch_em, labeled_ml
+from drake_skills.promp.gaussian import mc_kl_mixtures
+
+
+@pytest.fixture(scope="module")
+def letters():
+    demos = load_lasa(DEFAULT_LETTERS)
+    ws = lasa_workspace(demos)
+    return demos, ws
+
+
+def _majority_labels(lib, demos, ws):
+    votes = {}
+    for d in demos:
+        k = lib.recognize(d.human, workspace=ws).component
+        if k is not None:
+            votes.setdefault(k, []).append(d.task)
+    return {k: max(set(v), key=v.count) for k, v in votes.items()}
+
+
+def test_one_component_per_shape_in_at_least_90_of_100_orders_and_95_percent_recognized(letters):
+    demos, ws = letters
+    assert len({d.task for d in demos}) == 5
+    n_right, correct, total = 0, 0, 0
+    for order_seed in range(100):
+        rng = np.random.default_rng(order_seed)
+        held = {task: int(rng.integers(7)) for task in DEFAULT_LETTERS}
+        idx = {task: 0 for task in DEFAULT_LETTERS}
+        train, test = [], []
+        for d in demos:
+            (test if idx[d.task] == held[d.task] else train).append(d)
+            idx[d.task] += 1
+        lib = SkillLibrary(LibraryConfig(workspace=ws))
+        for i in rng.permutation(len(train)):
+            lib.partial_fit(train[i])
+        labels = _majority_labels(lib, train, ws)
+        n_right += lib.n_components == 5 and len(set(labels.values())) == 5
+        for d in test:
+            k = lib.recognize(d.human).component
+            correct += k is not None and labels.get(k) == d.task
+            total += 1
+    assert n_right >= 90, f"one component per shape in only {n_right}/100 orders"
+    assert correct / total >= 0.95, f"held-out accuracy {correct / total:.3f}"
+
+
+def test_kl_to_labeled_baseline_falls_with_samples_per_shape(letters):
+    demos, ws = letters
+    kl_inc, kl_em = {}, {}
+    for n_per in (2, 4, 7):
+        vals, vals_em = [], []
+        for seed in range(5):
+            rng = np.random.default_rng(seed)
+            by_task = {t: [d for d in demos if d.task == t] for t in DEFAULT_LETTERS}
+            chosen = [d for t in DEFAULT_LETTERS for d in rng.permutation(by_task[t])[:n_per]]
+            lib = SkillLibrary(LibraryConfig(workspace=ws))
+            for i in rng.permutation(len(chosen)):
+                lib.partial_fit(chosen[i])
+            W = np.stack([lib._encode(d) for d in chosen])
+            base = labeled_ml(W, [d.task for d in chosen])
+            vals.append(mc_kl_mixtures(base.as_tuple(), lib.as_mixture(), n_samples=2000, random_state=seed))
+            em = batch_em(W, 5, random_state=seed)
+            vals_em.append(mc_kl_mixtures(base.as_tuple(), em.as_tuple(), n_samples=2000, random_state=seed))
+        kl_inc[n_per], kl_em[n_per] = float(np.mean(vals)), float(np.mean(vals_em))
+    print("KL(labeled ML || incremental):", kl_inc, " KL(labeled ML || batch EM):", kl_em)
+    assert kl_inc[7] < kl_inc[4] < kl_inc[2], kl_inc
+    assert all(np.isfinite(v) for v in kl_em.values())
