@@ -1,0 +1,27 @@
+"""Fixtures for the systems tests: a small library from synthetic 3-D human + 7-joint robot demos."""
+import numpy as np
+import pytest
+
+from drake_skills import LibraryConfig, SkillLibrary
+from drake_skills.systems.gating import identity_workspace
+from synthetic import synthetic_demo
+
+#: Synthetic demos are in normalized units already: this workspace maps them to themselves.
+WORKSPACE = identity_workspace(3)
+
+
+@pytest.fixture(scope="session")
+def library() -> SkillLibrary:
+    """Four synthetic skills, four demonstrations each (seeded)."""
+    rng = np.random.default_rng(0)
+    lib = SkillLibrary(LibraryConfig())
+    for rep in range(4):
+        for task in range(4):
+            lib.partial_fit(synthetic_demo(task, rng), workspace=WORKSPACE)
+    return lib
+
+
+@pytest.fixture
+def demo():
+    """A held-out demonstration of synthetic skill 1."""
+    return synthetic_demo(1, np.random.default_rng(123))

@@ -1,0 +1,94 @@
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+
+from drake_skills import SkillLibrary
+from drake_skills.systems.gating import (PENDING, UNKNOWN, DecisionRule, GatingDecision, ObservedMotion, SkillGating,
+                                         gating_step, motion_is_over, recognize_motion, should_decide)
+from drake_skills.systems.normalizer import WorkspaceNormalizer
+from drake_skills.systems.wrist_source import HumanWristSource, WristTrial
+from drake_skills.systems.gating import identity_workspace
+
+WORKSPACE = identity_workspace(3)  # the synthetic demos are in normalized units
+
+RULE = DecisionRule()
+
+
+def _motion(y, dt=1 / 64):
+    y = np.asarray(y, float)
+    return ObservedMotion(dt * np.arange(len(y)), y - y[0])
+
+
+def test_motion_is_over_needs_travel_then_stillness():
+    still = np.zeros((40, 3))
+    assert not motion_is_over(_motion(still), RULE)  # never moved
+    moving = np.outer(np.linspace(0, 3, 40), [1, 0, 0])
+    assert not motion_is_over(_motion(moving), RULE)  # still moving
+    stop = np.vstack([moving, np.repeat(moving[-1:], 17, axis=0)])  # 16 ticks = 0.25 s still
+    assert motion_is_over(_motion(stop), RULE)
+    assert not motion_is_over(_motion(stop[:-2]), RULE)
+
+
+def test_decision_time_overrides_stillness():
+    rule = DecisionRule(decision_time=0.5)
+    moving = np.outer(np.linspace(0, 3, 40), [1, 0, 0])
+    assert not should_decide(_motion(moving[:32]), rule)
+    assert should_decide(_motion(moving[:33]), rule)
+
+
+def test_empty_library_answers_unknown():
+    assert recognize_motion(SkillLibrary(), _motion(np.outer(np.linspace(0, 3, 9), [1, 1, 0])))[0] == UNKNOWN
+
+
+def test_recognize_motion_finds_the_demonstrated_skill(library, demo):
+    y = WORKSPACE.normalize(demo.human)
+    k, resp = recognize_motion(library, _motion(y))
+    assert k == library.recognize(demo.human, workspace=WORKSPACE).component
+    assert k >= 0 and resp[k] > 0.9
+
+
+def test_gating_step_decides_once_and_then_freezes(library, demo):
+    y = WORKSPACE.normalize(demo.human)
+    state = GatingDecision()
+    for i, p in enumerate(np.vstack([y, np.repeat(y[-1:], 20, axis=0)])):
+        state = gating_step(state, i / 64, p, library, RULE)
+        if state.decided:
+            break
+    assert state.decided and state.component >= 0
+    assert gating_step(state, 99.0, np.ones(3), library, RULE) is state
+
+
+def test_outputs_pending_then_the_component_after_forced_updates(library, demo):
+    gating = SkillGating(library)
+    context = gating.CreateDefaultContext()
+    assert gating.GetOutputPort("component").Eval(context)[0] == PENDING
+    assert gating.GetOutputPort("responsibilities").Eval(context) == {}
+    y = WORKSPACE.normalize(demo.human)
+    scratch = context.Clone()
+    samples = np.vstack([y[::2], np.repeat(y[-1:], 20, axis=0)])
+    for i, p in enumerate(samples):
+        context.SetTime(i / 64)
+        gating.GetInputPort("normalized_wrist").FixValue(context, p)
+        gating.CalcForcedUnrestrictedUpdate(context, scratch.get_mutable_state())
+        context.SetAbstractState(0, scratch.get_abstract_state(0).get_value())
+    k = gating.GetOutputPort("component").Eval(context)[0]
+    assert k == library.recognize(demo.human, workspace=WORKSPACE).component
+    assert sum(gating.GetOutputPort("responsibilities").Eval(context).values()) == pytest.approx(1.0)
+    assert gating.GetOutputPort("observed_motion").Eval(context).n < len(samples)  # stopped accumulating
+
+
+def test_replayed_motion_is_decided_in_a_simulation(library, demo):
+    builder = DiagramBuilder()
+    source = builder.AddSystem(HumanWristSource(WristTrial(demo.t, demo.human)))
+    norm = builder.AddSystem(WorkspaceNormalizer(WORKSPACE))
+    gating = builder.AddSystem(SkillGating(library))
+    builder.Connect(source.GetOutputPort("human_wrist"), norm.GetInputPort("human_wrist"))
+    builder.Connect(norm.GetOutputPort("normalized_wrist"), gating.GetInputPort("normalized_wrist"))
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    simulator.AdvanceTo(demo.duration + 0.5)
+    context = gating.GetMyContextFromRoot(simulator.get_context())
+    decision = gating.decision(context)
+    assert decision.decided and decision.component == library.recognize(demo.human, workspace=WORKSPACE).component
+    assert demo.duration < decision.time < demo.duration + 0.4
