@@ -1,0 +1,104 @@
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+
+from drake_skills.systems.conditioner import ConditionedTrajectory, InteractionProMPConditioner
+from drake_skills.systems.gating import SkillGating, identity_workspace
+from drake_skills.systems.normalizer import WorkspaceNormalizer
+from drake_skills.systems.trajectory_source import JointTrajectorySource, build_plan, desired_at, plan_knots
+from drake_skills.systems.wrist_source import HumanWristSource, WristTrial
+
+LOWER, UPPER = -np.full(7, 2.0), np.full(7, 2.0)
+HOME = np.array([0.0, 0.3, 0.0, -1.2, 0.0, 0.6, 0.0])
+
+
+def _traj(start_time=1.0, end=None):
+    s = np.linspace(0, 1, 50)[:, None]
+    end = np.array([0.5, 0.8, -0.4, -0.5, 0.3, 1.0, 0.2]) if end is None else end
+    mean = HOME + (end - HOME) * (10 * s ** 3 - 15 * s ** 4 + 6 * s ** 5) + 0.05
+    return ConditionedTrajectory(3, mean, np.zeros_like(mean), 2.0, start_time)
+
+
+def test_plan_starts_at_the_held_pose_and_ends_at_the_mean():
+    traj = _traj()
+    times, q = plan_knots(traj, HOME, LOWER, UPPER)
+    np.testing.assert_allclose(q[0], HOME)
+    np.testing.assert_allclose(q[-1], traj.mean[-1])
+    assert times[0] == 1.0 and times[-1] == 3.0
+    plan = build_plan(traj, HOME, LOWER, UPPER)
+    q0, v0, _ = desired_at(plan, HOME, 1.0)
+    np.testing.assert_allclose(q0, HOME, atol=1e-12)
+    np.testing.assert_allclose(v0, 0.0, atol=1e-12)
+    q1, v1, a1 = desired_at(plan, HOME, 10.0)
+    np.testing.assert_allclose(q1, traj.mean[-1])
+    assert not v1.any() and not a1.any()
+    # held before the start
+    np.testing.assert_allclose(desired_at(plan, HOME, 0.5)[0], HOME)
+
+
+def test_plan_respects_joint_limits():
+    traj = _traj(end=np.full(7, 3.0))
+    plan = build_plan(traj, HOME, LOWER, UPPER)
+    qs = np.stack([desired_at(plan, HOME, t)[0] for t in np.linspace(0.9, 3.1, 500)])
+    assert (qs <= UPPER).all() and (qs >= LOWER).all()
+
+
+def test_plan_velocity_is_the_derivative_of_position():
+    plan = build_plan(_traj(), HOME, LOWER, UPPER)
+    t, h = 1.7, 1e-6
+    dq = (desired_at(plan, HOME, t + h)[0] - desired_at(plan, HOME, t - h)[0]) / (2 * h)
+    np.testing.assert_allclose(desired_at(plan, HOME, t)[1], dq, atol=1e-5)
+
+
+def test_holds_the_measured_pose_until_a_trajectory_arrives():
+    source = JointTrajectorySource(LOWER, UPPER, HOME)
+    simulator = Simulator(source)
+    context = simulator.get_mutable_context()
+    q_meas = HOME + 0.1
+    source.GetInputPort("measured_state").FixValue(context, np.concatenate([q_meas, np.zeros(7)]))
+    source.GetInputPort("robot_trajectory").FixValue(context, None)
+    simulator.Initialize()
+    simulator.AdvanceTo(0.5)
+    np.testing.assert_allclose(source.GetOutputPort("desired_state").Eval(context), np.r_[q_meas, np.zeros(7)])
+    np.testing.assert_allclose(source.GetOutputPort("desired_acceleration").Eval(context), 0.0)
+    # a trajectory starting at 1 s is picked up by the next update and played
+    source.GetInputPort("robot_trajectory").FixValue(context, _traj(start_time=1.0))
+    simulator.AdvanceTo(2.0)
+    plan = source.plan(context)
+    assert plan is not None and plan.start_time == 1.0
+    np.testing.assert_allclose(source.GetOutputPort("desired_state").Eval(context)[:7], plan.q.value(2.0)[:, 0])
+    simulator.AdvanceTo(4.0)
+    np.testing.assert_allclose(source.GetOutputPort("desired_state").Eval(context)[:7], plan.q.value(3.0)[:, 0])
+    np.testing.assert_allclose(source.GetOutputPort("desired_state").Eval(context)[:7][0], 0.55)  # knots shifted
+
+
+def test_whole_chain_turns_a_replayed_motion_into_a_joint_plan(library, demo):
+    ws = identity_workspace(3)
+    builder = DiagramBuilder()
+    wrist = builder.AddSystem(HumanWristSource(WristTrial(demo.t, demo.human)))
+    norm = builder.AddSystem(WorkspaceNormalizer(ws))
+    gating = builder.AddSystem(SkillGating(library))
+    cond = builder.AddSystem(InteractionProMPConditioner(library))
+    source = builder.AddSystem(JointTrajectorySource(LOWER, UPPER, np.zeros(7)))
+    builder.Connect(wrist.GetOutputPort("human_wrist"), norm.GetInputPort("human_wrist"))
+    builder.Connect(norm.GetOutputPort("normalized_wrist"), gating.GetInputPort("normalized_wrist"))
+    builder.Connect(gating.GetOutputPort("component"), cond.GetInputPort("component"))
+    builder.Connect(gating.GetOutputPort("observed_motion"), cond.GetInputPort("observed_motion"))
+    builder.Connect(cond.GetOutputPort("robot_trajectory"), source.GetInputPort("robot_trajectory"))
+    builder.ExportInput(source.GetInputPort("measured_state"), "measured_state")
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    root = simulator.get_mutable_context()
+    diagram.GetInputPort("measured_state").FixValue(root, np.zeros(14))
+    simulator.AdvanceTo(demo.duration + 3.0)
+    ctx = source.GetMyContextFromRoot(root)
+    plan = source.plan(ctx)
+    assert plan is not None
+    k = library.recognize(demo.human, workspace=ws).component
+    assert plan.source.component == k
+    mean, _ = library.predict_robot(demo.human, workspace=ws, component=k)
+    q_end = source.GetOutputPort("desired_state").Eval(ctx)[:7]
+    np.testing.assert_allclose(q_end, plan.source.mean[-1], atol=1e-12)
+    # decided a little before the wrist fully stopped: close to the prediction from the whole motion
+    np.testing.assert_allclose(q_end, mean[-1], atol=0.01)
