@@ -75,6 +75,12 @@ def mahalanobis_sq(x, mean, L) -> np.ndarray:
     d2 : float or array, shape (n,)
     """
     x = np.asarray(x, dtype=float)
+    d = np.shape(L)[0]
+    if x.ndim not in (1, 2) or x.shape[-1] != d or np.shape(mean) != (d,):
+        raise ValueError(f"points must have shape (d,) or (n, d) and mean (d,) with d = {d}, "
+                         f"got {x.shape} and {np.shape(mean)}")
+    if not np.isfinite(x).all():
+        raise ValueError("points have NaN or inf entries")
     diff = (x - mean).T  # (d,) or (d, n)
     z = solve_triangular(L, diff, lower=True, check_finite=False)
     return np.sum(z * z, axis=0)
@@ -114,18 +120,19 @@ def condition_gaussian(mean, cov, i_obs, x_obs, obs_cov=None):
     mean_c : array, shape (d - m,)
     cov_c : array, shape (d - m, d - m)
     """
-    mean = np.asarray(mean, float)
-    cov = np.asarray(cov, float)
+    mean, cov = validate_gaussian(mean, cov)
     idx = np.arange(mean.shape[0])
     obs = np.zeros(mean.shape[0], bool)
     obs[np.asarray(i_obs)] = True
     o, u = idx[obs], idx[~obs]
+    x_obs = as_finite_array(x_obs, "observed values", shape=(o.shape[0],))
     S_oo = cov[np.ix_(o, o)]
     if obs_cov is not None:
+        obs_cov = as_finite_array(obs_cov, "observation covariance", shape=(o.shape[0], o.shape[0]))
         S_oo = S_oo + obs_cov
     L = cholesky(S_oo)
     K = cho_solve((L, True), cov[np.ix_(o, u)]).T  # (u, o)
-    mean_c = mean[u] + K @ (np.asarray(x_obs, float) - mean[o])
+    mean_c = mean[u] + K @ (x_obs - mean[o])
     cov_c = symmetrize(cov[np.ix_(u, u)] - K @ cov[np.ix_(o, u)])
     return mean_c, cov_c
 
@@ -144,6 +151,12 @@ def merge_moments(s_i: float, mu_i, S_i, s_j: float, mu_j, S_j):
     holds the biased sample moments of its samples, the result equals the
     biased moments of the pooled samples.
     """
+    if not (np.isfinite(s_i) and np.isfinite(s_j) and s_i >= 0 and s_j >= 0 and s_i + s_j > 0):
+        raise ValueError(f"supports must be finite, >= 0 and not both 0, got {s_i!r}, {s_j!r}")
+    mu_i, S_i = validate_gaussian(mu_i, S_i, "first Gaussian")
+    mu_j, S_j = validate_gaussian(mu_j, S_j, "second Gaussian")
+    if mu_i.shape != mu_j.shape:
+        raise ValueError(f"cannot merge Gaussians of dimensions {mu_i.shape[0]} and {mu_j.shape[0]}")
     s = s_i + s_j
     a, b = s_i / s, s_j / s
     mu = a * np.asarray(mu_i) + b * np.asarray(mu_j)
@@ -154,7 +167,10 @@ def merge_moments(s_i: float, mu_i, S_i, s_j: float, mu_j, S_j):
 
 def kl_gaussian(mu0, S0, mu1, S1) -> float:
     """Closed-form ``KL(N(mu0, S0) || N(mu1, S1))``."""
-    mu0, mu1 = np.asarray(mu0, float), np.asarray(mu1, float)
+    mu0, S0 = validate_gaussian(mu0, S0, "first Gaussian")
+    mu1, S1 = validate_gaussian(mu1, S1, "second Gaussian")
+    if mu0.shape != mu1.shape:
+        raise ValueError(f"KL between Gaussians of dimensions {mu0.shape[0]} and {mu1.shape[0]}")
     L0, L1 = cholesky(S0), cholesky(S1)
     d = mu0.shape[0]
     M = solve_triangular(L1, L0, lower=True, check_finite=False)  # L1^{-1} L0
@@ -186,12 +202,31 @@ def mc_kl_mixtures(p, q, n_samples: int = 2000, random_state=None) -> float:
         ``1/sqrt(n_samples)``.
     random_state : None, int or Generator
     """
-    wp, mp, Sp = p
-    wq, mq, Sq = q
+    wp, mp, Sp = _validate_mixture(p, "p")
+    wq, mq, Sq = _validate_mixture(q, "q")
+    if mp.shape[1] != mq.shape[1]:
+        raise ValueError(f"mixtures p and q have dimensions {mp.shape[1]} and {mq.shape[1]}")
+    if int(n_samples) != n_samples or n_samples < 1:
+        raise ValueError(f"n_samples must be a positive integer, got {n_samples!r}")
+    n_samples = int(n_samples)
     x = sample_mixture(wp, mp, Sp, n_samples, random_state)
     lp = gmm_log_density(x, wp, mp, [cholesky(S) for S in Sp])
     lq = gmm_log_density(x, wq, mq, [cholesky(S) for S in Sq])
     return float(np.mean(lp - lq))
+
+
+def _validate_mixture(m, name: str):
+    """Validate a ``(weights (K,), means (K, d), covs (K, d, d))`` tuple."""
+    try:
+        w, mu, S = m
+    except (TypeError, ValueError):
+        raise ValueError(f"mixture {name} must be a tuple (weights, means, covs)") from None
+    w = as_finite_array(w, f"mixture {name} weights", ndim=1, min_rows=1)
+    mu = as_finite_array(mu, f"mixture {name} means", shape=(w.shape[0], None))
+    S = as_finite_array(S, f"mixture {name} covariances", shape=(w.shape[0], mu.shape[1], mu.shape[1]))
+    if (w < 0).any() or not w.sum() > 0:
+        raise ValueError(f"mixture {name} weights must be >= 0 with a positive sum")
+    return w, mu, S
 
 
 def validate_gaussian(mean, cov, name: str = "Gaussian"):

@@ -1,0 +1,123 @@
+"""Gaussian basis, ridge weights (Eqs. 3-4) and trajectories from weights."""
+import numpy as np
+import pytest
+
+from drake_skills.promp.basis import (GaussianBasis, phases, ridge_weights, trajectory_covariance,
+                                      trajectory_from_weights)
+
+
+def _smooth(T=200):
+    z = phases(T)
+    return np.stack([np.sin(2 * np.pi * z), z ** 2 - 0.5 * z, np.exp(-z) * np.cos(3 * z)], axis=1)
+
+
+@pytest.mark.parametrize("basis", [GaussianBasis(25, width=1.5), GaussianBasis(25, normalized=True)])
+def test_weights_reproduce_smooth_trajectory_below_1e_3_rms(basis):
+    # Note: the default GaussianBasis(25) (unnormalized, width 1.0) saturates at ~2e-3 RMS on this
+    # unit-amplitude signal, mostly at the two ends where only half the Gaussians reach.
+    Y = _smooth()
+    w = ridge_weights(Y, basis, ridge=1e-10)
+    Y_hat = trajectory_from_weights(w, basis, 3, n_steps=Y.shape[0])
+    rms = np.sqrt(np.mean((Y_hat - Y) ** 2))
+    assert rms < 1e-3, rms
+
+
+def test_reconstruction_error_falls_with_more_basis_functions():
+    Y = _smooth()
+    errs = [np.sqrt(np.mean((trajectory_from_weights(ridge_weights(Y, GaussianBasis(n)), GaussianBasis(n), 3,
+                                                     n_steps=200) - Y) ** 2)) for n in (5, 10, 20)]
+    assert errs[0] > errs[1] > errs[2]
+
+
+def test_weights_are_stacked_per_dimension():
+    Y = _smooth()
+    basis = GaussianBasis(8)
+    w = ridge_weights(Y, basis)
+    assert w.shape == (3 * 8,)
+    for d in range(3):
+        np.testing.assert_allclose(w[d * 8:(d + 1) * 8], ridge_weights(Y[:, [d]], basis), rtol=0, atol=1e-12)
+
+
+def test_ridge_weights_at_given_phases_match_uniform_operator():
+    Y = _smooth(50)
+    basis = GaussianBasis(7, normalized=True)
+    np.testing.assert_allclose(ridge_weights(Y, basis, z=phases(50)), ridge_weights(Y, basis), rtol=1e-9, atol=1e-10)
+
+
+def test_phi_of_normalized_basis_sums_to_one():
+    Phi = GaussianBasis(6, width=0.5, normalized=True).phi(np.linspace(0, 1, 33))
+    np.testing.assert_allclose(Phi.sum(axis=1), 1.0, rtol=0, atol=1e-12)
+
+
+def test_trajectory_covariance_matches_sampling():
+    rng = np.random.default_rng(0)
+    basis, D = GaussianBasis(5), 2
+    A = rng.standard_normal((10, 10))
+    Sigma = A @ A.T / 10 + 0.01 * np.eye(10)
+    mu = rng.standard_normal(10)
+    cov = trajectory_covariance(Sigma, basis, D, n_steps=30)
+    W = rng.multivariate_normal(mu, Sigma, size=40000)
+    Ys = np.stack([trajectory_from_weights(w, basis, D, n_steps=30) for w in W[:4000]])
+    # brute force Psi_t Sigma Psi_t^T with Psi_t = I_D (x) phi_t^T
+    Phi = basis.phi_uniform(30)
+    for t in (0, 13, 29):
+        Psi = np.kron(np.eye(D), Phi[t][None, :])
+        np.testing.assert_allclose(cov[t], Psi @ Sigma @ Psi.T, rtol=1e-10, atol=1e-12)
+    # sample covariance of 4000 trajectories: relative standard error ~ sqrt(2/4000) = 2.2%; allow 10%
+    emp = np.einsum("ktd,kte->tde", Ys - Ys.mean(0), Ys - Ys.mean(0)) / Ys.shape[0]
+    scale = np.sqrt(np.einsum("tdd->td", cov))
+    err = np.abs(emp - cov) / (scale[:, :, None] * scale[:, None, :])
+    assert err.max() < 0.1, err.max()
+
+
+def test_basis_rejects_bad_parameters():
+    with pytest.raises(ValueError, match="n_basis"):
+        GaussianBasis(1)
+    with pytest.raises(ValueError, match="n_basis"):
+        GaussianBasis(3.5)
+    with pytest.raises(ValueError, match="width"):
+        GaussianBasis(5, width=0.0)
+    with pytest.raises(ValueError, match="width"):
+        GaussianBasis(5, width=np.nan)
+    with pytest.raises(ValueError, match="phase must lie"):
+        GaussianBasis(5).phi([0.0, 1.2])
+    with pytest.raises(ValueError, match="phase has NaN"):
+        GaussianBasis(5).phi([0.0, np.nan])
+    with pytest.raises(ValueError, match="phase must have 1 dimension"):
+        GaussianBasis(5).phi(np.zeros((2, 2)))
+    with pytest.raises(ValueError, match="at least 2 time steps"):
+        phases(1)
+
+
+def test_ridge_weights_rejects_bad_input():
+    basis = GaussianBasis(5)
+    with pytest.raises(ValueError, match="trajectory has NaN at rows 3"):
+        Y = np.zeros((10, 2))
+        Y[3, 1] = np.nan
+        ridge_weights(Y, basis)
+    with pytest.raises(ValueError, match="trajectory has inf"):
+        ridge_weights(np.full((10, 2), np.inf), basis)
+    with pytest.raises(ValueError, match="trajectory must have 2 dimension"):
+        ridge_weights(np.zeros(10), basis)
+    with pytest.raises(ValueError, match="too short"):
+        ridge_weights(np.zeros((1, 2)), basis)
+    with pytest.raises(ValueError, match="ridge"):
+        ridge_weights(np.zeros((10, 2)), basis, ridge=-1.0)
+    with pytest.raises(ValueError, match="cannot determine"):
+        ridge_weights(np.zeros((3, 2)), basis, ridge=0.0)
+    with pytest.raises(ValueError, match="phase must have shape"):
+        ridge_weights(np.zeros((10, 2)), basis, z=np.linspace(0, 1, 9))
+
+
+def test_trajectory_functions_reject_bad_input():
+    basis = GaussianBasis(4)
+    with pytest.raises(ValueError, match=r"weights must have shape \(8\)"):
+        trajectory_from_weights(np.zeros(7), basis, 2)
+    with pytest.raises(ValueError, match="weights has NaN"):
+        trajectory_from_weights(np.full(8, np.nan), basis, 2)
+    with pytest.raises(ValueError, match=r"covariance must have shape \(8, 8\)"):
+        trajectory_covariance(np.eye(7), basis, 2)
+    with pytest.raises(ValueError, match="covariance has inf"):
+        trajectory_covariance(np.full((8, 8), np.inf), basis, 2)
+    with pytest.raises(ValueError, match="at least 2 time steps"):
+        trajectory_from_weights(np.zeros(8), basis, 2, n_steps=1)

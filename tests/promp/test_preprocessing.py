@@ -1,0 +1,133 @@
+"""Arc-length resampling and workspace normalization (Eq. 14)."""
+import numpy as np
+import pytest
+
+from drake_skills.promp.preprocessing import Workspace, resample_by_arc_length, resample_in_time
+
+
+def _path(s):
+    """A planar-ish 3-D curve as a function of a path parameter s in [0, 1]."""
+    return np.stack([np.cos(3 * s), np.sin(2 * s) + s, 0.5 * s ** 2], axis=1)
+
+
+def _path_length(y):
+    return np.linalg.norm(np.diff(y, axis=0), axis=1).sum()
+
+
+def test_arc_length_resampling_is_invariant_to_speed():
+    u = np.linspace(0, 1, 4000)
+    slow_fast = u ** 3  # the same path, traversed with a nonlinear monotone change of speed
+    a = resample_by_arc_length(_path(u), 50)
+    b = resample_by_arc_length(_path(slow_fast), 50)
+    L = _path_length(_path(u))
+    assert np.abs(a - b).max() < 1e-3 * L, np.abs(a - b).max() / L
+
+
+def test_arc_length_samples_are_equidistant_along_the_path():
+    # a helix (constant curvature) traversed at a varying speed: chords of equal arcs are equal
+    a = 4 * np.pi * np.linspace(0, 1, 4000) ** 2
+    y = resample_by_arc_length(np.stack([np.cos(a), np.sin(a), 0.3 * a], axis=1), 30)
+    step = np.linalg.norm(np.diff(y, axis=0), axis=1)
+    np.testing.assert_allclose(step, step.mean(), rtol=1e-3)
+
+
+def test_arc_length_resampling_ignores_standing_still_and_repeated_points():
+    u = np.linspace(0, 1, 500)
+    y = _path(u)
+    still = np.concatenate([np.repeat(y[:1], 40, axis=0), y[:200], np.repeat(y[200:201], 7, axis=0), y[200:],
+                            np.repeat(y[-1:], 60, axis=0)])
+    np.testing.assert_allclose(resample_by_arc_length(still, 40), resample_by_arc_length(y, 40), rtol=0, atol=1e-12)
+    out = resample_by_arc_length(still, 40)
+    np.testing.assert_allclose(out[0], y[0], atol=1e-12)
+    np.testing.assert_allclose(out[-1], y[-1], atol=1e-12)
+
+
+def test_arc_length_resampling_rejects_motionless_and_bad_input():
+    with pytest.raises(ValueError, match="does not move"):
+        resample_by_arc_length(np.ones((20, 3)), 10)
+    with pytest.raises(ValueError, match="too short"):
+        resample_by_arc_length(np.zeros((1, 3)), 10)
+    with pytest.raises(ValueError, match="NaN at rows 4"):
+        y = _path(np.linspace(0, 1, 10))
+        y[4, 0] = np.nan
+        resample_by_arc_length(y, 10)
+    with pytest.raises(ValueError, match="inf"):
+        resample_by_arc_length(np.full((10, 2), np.inf), 10)
+    with pytest.raises(ValueError, match="2 dimension"):
+        resample_by_arc_length(np.arange(10.0), 10)
+    with pytest.raises(ValueError, match="n_samples"):
+        resample_by_arc_length(_path(np.linspace(0, 1, 10)), 1)
+
+
+def test_resample_in_time_is_exact_for_linear_motion_and_rejects_bad_input():
+    t = np.array([0.0, 0.1, 0.5, 0.6, 2.0])
+    y = np.stack([3 * t + 1, -t], axis=1)
+    out = resample_in_time(t, y, 9)
+    grid = np.linspace(0, 2, 9)
+    np.testing.assert_allclose(out, np.stack([3 * grid + 1, -grid], axis=1), rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match="not strictly increasing"):
+        resample_in_time([0.0, 0.2, 0.2, 0.3], np.zeros((4, 2)), 5)
+    with pytest.raises(ValueError, match="shape"):
+        resample_in_time(t, np.zeros((4, 2)), 5)
+    with pytest.raises(ValueError, match="t has NaN"):
+        resample_in_time([0.0, np.nan, 1.0], np.zeros((3, 2)), 5)
+    with pytest.raises(ValueError, match="too short"):
+        resample_in_time([0.0], np.zeros((1, 2)), 5)
+    with pytest.raises(ValueError, match="n_samples"):
+        resample_in_time(t, y, 0)
+
+
+def test_workspace_normalization_round_trips():
+    rng = np.random.default_rng(0)
+    ws = Workspace(np.array([-0.3, 0.1, 0.8]), np.array([0.4, 0.9, 1.6]))
+    y = rng.uniform(-1, 2, (25, 3))
+    np.testing.assert_allclose(ws.denormalize(ws.normalize(y), start=y[0]), y, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ws.denormalize(ws.normalize(y, subtract_start=False)), y, rtol=0, atol=1e-12)
+    yn = ws.normalize(y)
+    np.testing.assert_array_equal(yn[0], 0.0)
+
+
+def test_workspace_maps_bounds_to_0_and_scale():
+    ws = Workspace([-1.0, 2.0], [1.0, 6.0], scale=10.0)
+    out = ws.normalize(np.array([[-1.0, 2.0], [1.0, 6.0], [0.0, 4.0]]), subtract_start=False)
+    np.testing.assert_allclose(out, [[0, 0], [10, 10], [5, 5]], rtol=0, atol=1e-12)
+
+
+def test_from_calibration_takes_bounds_and_shrinks_z():
+    xy = np.array([[0.0, 0.0, 1.0], [2.0, 1.0, 1.0]])
+    zy = np.array([[1.0, -1.0, 0.0], [1.0, 0.5, 2.0]])
+    ws = Workspace.from_calibration([xy, zy])
+    np.testing.assert_allclose(ws.lower, [0, -1, 0])
+    np.testing.assert_allclose(ws.upper, [2, 1, 2])
+    ws9 = Workspace.from_calibration([xy, zy], z_factor=0.9)
+    np.testing.assert_allclose(ws9.lower, [0, -1, 0.1], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ws9.upper, [2, 1, 1.9], rtol=0, atol=1e-12)
+    assert Workspace.from_dict(ws9.dict()).dict() == ws9.dict()
+
+
+def test_workspace_rejects_bad_input():
+    with pytest.raises(ValueError, match="empty along axes"):
+        Workspace([0.0, 1.0], [1.0, 1.0])
+    with pytest.raises(ValueError, match="lower bound has NaN"):
+        Workspace([np.nan, 0.0], [1.0, 1.0])
+    with pytest.raises(ValueError, match="shape"):
+        Workspace([0.0, 0.0], [1.0, 1.0, 1.0])
+    with pytest.raises(ValueError, match="scale"):
+        Workspace([0.0], [1.0], scale=0.0)
+    ws = Workspace([0.0, 0.0], [1.0, 1.0])
+    with pytest.raises(ValueError, match="shape"):
+        ws.normalize(np.zeros((5, 3)))
+    with pytest.raises(ValueError, match="inf"):
+        ws.normalize(np.full((5, 2), np.inf))
+    with pytest.raises(ValueError, match="start"):
+        ws.denormalize(np.zeros((5, 2)), start=np.zeros(3))
+    with pytest.raises(ValueError, match="no calibration motions"):
+        Workspace.from_calibration([])
+    with pytest.raises(ValueError, match="different dimensions"):
+        Workspace.from_calibration([np.zeros((3, 2)), np.zeros((3, 3))])
+    with pytest.raises(ValueError, match="calibration motion 1 has NaN"):
+        Workspace.from_calibration([np.eye(3), np.full((3, 3), np.nan)])
+    with pytest.raises(ValueError, match="z_factor"):
+        Workspace.from_calibration([np.eye(3)], z_factor=1.5)
+    with pytest.raises(ValueError, match="z_axis"):
+        Workspace.from_calibration([np.eye(2)], z_factor=0.9)
