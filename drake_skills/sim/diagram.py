@@ -1,0 +1,164 @@
+"""``build_diagram``: the skill library as a controller of a simulated IIWA7 in the salad scene.
+
+::
+
+    HumanWristSource ─▶ WorkspaceNormalizer ─▶ SkillGating ─▶ InteractionProMPConditioner
+                                                                     │ robot_trajectory
+    plant state ─▶ JointTrajectorySource ◀───────────────────────────┘
+                        │ desired state, acceleration
+                        ▼
+               InverseDynamicsController ─▶ MultibodyPlant (IIWA7 + scene) ─▶ MeshcatVisualizer
+                  (own iiwa-only plant)
+
+The person is never a body of the plant: the wrist is drawn in meshcat by
+:class:`~drake_skills.sim.wrist_marker.WristMarker`.  This module is the only
+place that calls ``Connect``.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.geometry import (CollisionFilterDeclaration, GeometrySet, Meshcat, MeshcatParams, Role, SceneGraph)
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, MultibodyPlant
+from pydrake.multibody.tree import BodyIndex, Frame, ModelInstanceIndex
+from pydrake.systems.controllers import InverseDynamicsController
+from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
+
+from drake_skills.library.incremental import SkillLibrary
+from drake_skills.promp.preprocessing import Workspace
+from drake_skills.sim.config import SimConfig
+from drake_skills.sim.models import (FLANGE_FRAME, HOME_Q, IIWA7_JOINT_LIMITS, add_salad_scene, load_scene_config,
+                                     make_iiwa7_plant)
+from drake_skills.sim.wrist_marker import WristMarker
+from drake_skills.systems.conditioner import InteractionProMPConditioner
+from drake_skills.systems.gating import SkillGating
+from drake_skills.systems.normalizer import WorkspaceNormalizer
+from drake_skills.systems.trajectory_source import JointTrajectorySource
+from drake_skills.systems.wrist_source import HumanWristSource
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class DiagramHandles:
+    """The systems of the diagram a caller needs to reach into its context."""
+
+    plant: MultibodyPlant
+    scene_graph: SceneGraph
+    #: The IIWA7 model instance of ``plant``.
+    iiwa: ModelInstanceIndex
+    #: Its tool flange frame E.
+    flange: Frame
+    #: The iiwa-only plant of the controller.
+    controller_plant: MultibodyPlant
+    controller: InverseDynamicsController
+    wrist_source: HumanWristSource
+    normalizer: WorkspaceNormalizer
+    gating: SkillGating
+    conditioner: InteractionProMPConditioner
+    trajectory_source: JointTrajectorySource
+    visualizer: MeshcatVisualizer | None = None
+    wrist_marker: WristMarker | None = None
+    meshcat: Meshcat | None = None
+
+
+def make_meshcat() -> Meshcat:
+    """A Meshcat server on localhost only (first free port from 7000)."""
+    return Meshcat(MeshcatParams(host="localhost", port=None))
+
+
+def _filter_robot_scene_contact(plant: MultibodyPlant, scene_graph: SceneGraph, iiwa: ModelInstanceIndex) -> None:
+    """No contact between the robot and the welded scene (the robot is taught to reach into it)."""
+    robot = GeometrySet()
+    scene = GeometrySet()
+    for body_index in range(plant.num_bodies()):
+        body = plant.get_body(BodyIndex(body_index))
+        ids = plant.GetCollisionGeometriesForBody(body)
+        if not ids:
+            continue
+        (robot if body.model_instance() == iiwa else scene).Add(ids)
+    scene_graph.collision_filter_manager().Apply(CollisionFilterDeclaration().ExcludeBetween(robot, scene))
+
+
+def build_diagram(config: SimConfig, *, library: SkillLibrary, workspace: Workspace,
+                  meshcat: Meshcat | None = None) -> tuple[Diagram, DiagramHandles]:
+    """Build the closed loop: replayed wrist -> skill library -> controller -> IIWA7 plant.
+
+    Parameters
+    ----------
+    config : SimConfig
+    library : SkillLibrary
+        Read at every decision, so teaching it between trials needs no rebuild.
+    workspace : Workspace
+        The subject's workspace (Eq. 14).
+    meshcat : Meshcat, optional
+        Draw the scene, the wrist and the decision colour.
+
+    Returns
+    -------
+    diagram : Diagram
+    handles : DiagramHandles
+    """
+    builder = DiagramBuilder()
+    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=config.time_step)
+    scene = load_scene_config()
+    models = add_salad_scene(plant, Parser(plant), scene)
+    iiwa = models["iiwa"]
+    plant.Finalize()
+    plant.SetDefaultPositions(iiwa, HOME_Q)
+    if not config.robot_scene_contact:
+        _filter_robot_scene_contact(plant, scene_graph, iiwa)
+
+    controller_plant = make_iiwa7_plant(scene.robot_base.transform())
+    n = controller_plant.num_positions()
+    gains = config.controller
+    controller = builder.AddSystem(InverseDynamicsController(
+        controller_plant, kp=np.full(n, gains.kp), ki=np.full(n, gains.ki), kd=np.full(n, gains.kd),
+        has_reference_acceleration=True))
+    controller.set_name("inverse_dynamics_controller")
+
+    lower, upper = IIWA7_JOINT_LIMITS
+    wrist = builder.AddSystem(HumanWristSource())
+    normalizer = builder.AddSystem(WorkspaceNormalizer(workspace))
+    gating = builder.AddSystem(SkillGating(library, config.decision.rule(), dim=workspace.dim,
+                                           scale=workspace.scale))
+    conditioner = builder.AddSystem(InteractionProMPConditioner(library, n_steps=config.n_steps,
+                                                                scale=workspace.scale))
+    source = builder.AddSystem(JointTrajectorySource(lower, upper, HOME_Q))
+    for system, name in ((wrist, "human_wrist_source"), (normalizer, "workspace_normalizer"), (gating, "skill_gating"),
+                         (conditioner, "interaction_promp_conditioner"), (source, "joint_trajectory_source")):
+        system.set_name(name)
+
+    builder.Connect(wrist.GetOutputPort("human_wrist"), normalizer.GetInputPort("human_wrist"))
+    builder.Connect(normalizer.GetOutputPort("normalized_wrist"), gating.GetInputPort("normalized_wrist"))
+    builder.Connect(gating.GetOutputPort("component"), conditioner.GetInputPort("component"))
+    builder.Connect(gating.GetOutputPort("observed_motion"), conditioner.GetInputPort("observed_motion"))
+    builder.Connect(conditioner.GetOutputPort("robot_trajectory"), source.GetInputPort("robot_trajectory"))
+    builder.Connect(plant.get_state_output_port(iiwa), source.GetInputPort("measured_state"))
+    builder.Connect(source.GetOutputPort("desired_state"), controller.get_input_port_desired_state())
+    builder.Connect(source.GetOutputPort("desired_acceleration"), controller.get_input_port_desired_acceleration())
+    builder.Connect(plant.get_state_output_port(iiwa), controller.get_input_port_estimated_state())
+    builder.Connect(controller.get_output_port_control(), plant.get_actuation_input_port(iiwa))
+
+    visualizer = marker = None
+    if meshcat is not None:
+        params = MeshcatVisualizerParams()
+        params.publish_period = config.meshcat.publish_period
+        params.role = Role.kIllustration
+        params.delete_on_initialization_event = False  # one diagram, many trials, one recording
+        visualizer = MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat, params)
+        marker = builder.AddSystem(WristMarker(meshcat, config.meshcat.publish_period, config.meshcat.wrist_radius,
+                                               p_WL=scene.robot_base.transform().translation() + [0, 0.25, 0.75]))
+        marker.set_name("wrist_marker")
+        builder.Connect(wrist.GetOutputPort("human_wrist"), marker.GetInputPort("human_wrist"))
+        builder.Connect(gating.GetOutputPort("component"), marker.GetInputPort("component"))
+
+    diagram = builder.Build()
+    diagram.set_name("drake_skills_collaboration")
+    handles = DiagramHandles(plant, scene_graph, iiwa, plant.GetFrameByName(FLANGE_FRAME, iiwa), controller_plant,
+                             controller, wrist, normalizer, gating, conditioner, source, visualizer, marker, meshcat)
+    return diagram, handles
