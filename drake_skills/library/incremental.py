@@ -136,7 +136,7 @@ class LibraryConfig:
     #: Sigma_init = sigma_init_robot^2 I for robot weights (radians).
     sigma_init_robot: float = 0.1
     #: Variance added to the gating covariance whenever it is evaluated.
-    gating_floor: float = 0.7
+    gating_floor: float = 1.0
     #: Use gamma~ = gamma + exp(-s) lambda (Eq. 6) to forget Sigma_init faster;
     #: False gives the exact running covariance.
     fast_forgetting: bool = True
