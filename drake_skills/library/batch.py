@@ -19,7 +19,7 @@ import numpy as np
 from scipy.special import logsumexp
 
 from drake_skills._checks import as_finite_array
-from drake_skills.promp.gaussian import check_random_state, cholesky, log_density, symmetrize
+from drake_skills.promp.gaussian import check_random_state, log_density, symmetrize
 
 
 @dataclass(frozen=True, eq=False)
@@ -53,7 +53,12 @@ class Mixture:
         if (w < 0).any() or not np.isclose(w.sum(), 1.0, rtol=0, atol=1e-9):
             raise ValueError(f"mixture weights must be non-negative and sum to 1, got sum {w.sum():g}")
         S = 0.5 * (S + S.transpose(0, 2, 1))
-        chols = np.stack([cholesky(S[k]) for k in range(K)])  # raises if not positive definite
+        chols = np.empty_like(S)
+        for k in range(K):
+            try:  # no jitter here: a mixture's covariances must be positive definite as given
+                chols[k] = np.linalg.cholesky(S[k])
+            except np.linalg.LinAlgError:
+                raise ValueError(f"mixture covariance {k} is not positive definite") from None
         if self.labels is not None and len(self.labels) != K:
             raise ValueError(f"{len(self.labels)} labels for {K} components")
         for a in (w, m, S, chols):
@@ -172,6 +177,9 @@ def labeled_ml(W, labels: Sequence, min_variance: float = 1e-6) -> Mixture:
     weights, means, covs = [], [], []
     for k in range(len(order)):
         Wk = W[lab == k]
+        if min_variance == 0 and Wk.shape[0] <= d:
+            raise ValueError(f"label {order[k]!r} has {Wk.shape[0]} sample(s) in {d} dimensions: its covariance "
+                             f"is singular; use min_variance > 0")
         mu = Wk.mean(axis=0)
         diff = Wk - mu
         weights.append(Wk.shape[0] / W.shape[0])

@@ -1,0 +1,57 @@
+"""LASA handwriting loader."""
+import numpy as np
+import pytest
+
+from drake_skills.data.demonstration import Demonstration
+from drake_skills.data.lasa import DEFAULT_LETTERS, LASA_SHAPES, lasa_workspace, load_lasa
+
+
+def test_default_letters_are_five_lasa_shapes():
+    assert len(DEFAULT_LETTERS) == 5 and len(set(DEFAULT_LETTERS)) == 5
+    assert set(DEFAULT_LETTERS) <= set(LASA_SHAPES)
+    assert len(LASA_SHAPES) == 30
+
+
+def test_load_lasa_returns_valid_demonstrations_normalized_into_0_10():
+    demos = load_lasa()
+    assert len(demos) == 35
+    assert all(isinstance(d, Demonstration) for d in demos)
+    assert [d.task for d in demos] == [s for s in DEFAULT_LETTERS for _ in range(7)]
+    assert {d.subject for d in demos} == {"lasa"}
+    assert demos[8].name == f"lasa/{DEFAULT_LETTERS[1]}_1"
+    for d in demos:
+        assert d.robot is None and d.human.shape == (1000, 2) and d.t.shape == (1000,)
+        assert (np.diff(d.t) > 0).all()
+    ws = lasa_workspace(demos)
+    all_n = np.concatenate([ws.normalize(d.human, subtract_start=False) for d in demos])
+    assert all_n.min() >= -1e-12 and all_n.max() <= 10 + 1e-12
+    np.testing.assert_allclose(all_n.min(0), 0.0, atol=1e-12)  # the bounds are attained
+    np.testing.assert_allclose(all_n.max(0), 10.0, atol=1e-12)
+
+
+def test_load_lasa_subsamples_and_keeps_the_end_point():
+    full = load_lasa(["Angle"], n_demos=2)
+    sub = load_lasa(["Angle"], n_demos=2, subsample=7)
+    assert len(sub) == 2
+    assert sub[0].n_samples == len(range(0, 1000, 7)) + 1
+    np.testing.assert_array_equal(sub[1].human[-1], full[1].human[-1])
+    np.testing.assert_array_equal(sub[1].human[1], full[1].human[7])
+
+
+def test_lasa_rejects_bad_arguments():
+    with pytest.raises(ValueError, match="unknown LASA shape"):
+        load_lasa(["Gshape"])
+    with pytest.raises(ValueError, match="no LASA shapes"):
+        load_lasa([])
+    with pytest.raises(ValueError, match="repeated"):
+        load_lasa(["Angle", "Angle"])
+    with pytest.raises(ValueError, match="n_demos"):
+        load_lasa(["Angle"], n_demos=8)
+    with pytest.raises(ValueError, match="subsample"):
+        load_lasa(["Angle"], subsample=0)
+    with pytest.raises(ValueError, match="leaves 4 samples"):
+        load_lasa(["Angle"], subsample=400)
+    with pytest.raises(ValueError, match="at least one"):
+        lasa_workspace([])
+    with pytest.raises(ValueError, match="not a Demonstration"):
+        lasa_workspace([np.zeros((5, 2))])
