@@ -297,7 +297,10 @@ class InteractionProMP:
         """
         self._check_fitted()
         y, Phi_o = self._observations(human_obs, z_obs)
-        noise = self.observation_noise if observation_noise is None else observation_noise
+        noise = self.observation_noise if observation_noise is None else check_positive(
+            observation_noise, "observation_noise")
+        if not np.isfinite(cov_floor) or cov_floor < 0:
+            raise ValueError(f"cov_floor must be >= 0, got {cov_floor!r}")
         h = self.n_human
         S = self.cov_[:h, :h] + cov_floor * np.eye(h)
         return observation_log_likelihood(self.mean_[:h], S, Phi_o, y, noise)
