@@ -1,0 +1,598 @@
+"""The simulated salad scenario (paper Sec. 4.2, Fig. 5): 10 subjects x 5 tasks.
+
+Human
+    The right wrist of a seated person, 3-D positions in metres (world frame of
+    ``models/salad/scene.yaml``) at 150 Hz. Every motion starts at the subject's rest
+    position on the table edge, first lifts the hand the same way for every task (the
+    shared first segment, about a quarter of the path), then bends toward the task's goal:
+    the knife (board), the tomato, the bowl, the shelf (dressing), or up and back as the
+    person rises (standup). The path is timed by a skewed minimum-jerk profile (bell-shaped
+    speed), and the hand then holds still while the robot completes the handover.
+    Subjects differ in arm length, workspace size, seated position, start offset, speed
+    profile, path curvature, personal style per task and noise. Subjects 3 and 7 are
+    sloppy (:data:`SLOPPY_SUBJECTS`): large via-point jitter and two alternating path
+    styles, so their personal libraries need more than five components.
+Calibration (Sec. 4.2.2)
+    Half circles at arm's reach (arm length + torso lean) in the x-y plane (at table
+    height, centred at the shoulder) and in the z-y plane (in front of the body, from
+    table height over the top), arrays of shape (T, 3). Every demonstration lies inside
+    their bounding box by construction (the path's control points are kept inside it).
+Robot
+    IIWA7 joint angles (radians) from Drake inverse kinematics on a plant holding only
+    the robot: from :data:`~drake_skills.sim.models.HOME_Q` to the task's fixed grasp
+    pose (solved once per task and cached), then to a handover pose that follows the
+    person's final wrist position (``handover_distance`` toward the robot base), seeded
+    with the grasp solution. The joint trajectory is two minimum-jerk segments in joint
+    space (stopping at the grasp), starting shortly after the human starts.
+
+Randomness: every draw comes from ``np.random.default_rng`` seeded by
+``(seed, subject index, stream, ...)``, so subject k's data does not depend on how
+many subjects or which tasks are generated, and the same seed gives the same bytes.
+"""
+from __future__ import annotations
+
+import functools
+import logging
+from typing import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from drake_skills.data.demonstration import Demonstration
+from drake_skills.promp.preprocessing import Workspace
+
+log = logging.getLogger(__name__)
+
+#: The five collaborative tasks of the paper, in a fixed order (seeds depend on it).
+TASKS = ("board", "tomato", "bowl", "dressing", "standup")
+#: Sampling rate of the motion capture system, Hz.
+RATE_HZ = 150.0
+#: 1-based indices of the sloppy subjects.
+SLOPPY_SUBJECTS = (3, 7)
+#: Height of the table top, metres (world); the wrist stays 1.5 cm above it or higher.
+TABLE_TOP_Z = 0.75
+
+# Relative reach duration per task (standing up and reaching to the shelf take longer).
+_TASK_DURATION = {"board": 0.9, "tomato": 1.0, "bowl": 1.0, "dressing": 1.15, "standup": 1.35}
+# Random streams (second seed word after the subject index).
+_STREAM_SUBJECT, _STREAM_DEMO, _STREAM_CALIBRATION = 0, 1, 2
+
+
+@dataclass(eq=False)
+class Subject:
+    """One simulated person.
+
+    Attributes
+    ----------
+    name : str
+        ``"subject1"`` .. ``"subject10"``.
+    arm_length : float
+        Shoulder to wrist, metres.
+    index : int
+        1-based subject number.
+    reach : float
+        Arm length plus torso lean: the calibration radius, metres.
+    workspace_scale : float
+        Scale of the subject's reaches relative to the nominal subject.
+    shoulder : array, shape (3,)
+        Right shoulder position while seated, metres (world).
+    rest : array, shape (3,)
+        Mean wrist rest position (start of every motion), metres (world).
+    duration : float
+        Mean reach duration, seconds (scaled per task).
+    profile_skew : float
+        Skew of the speed profile (0: symmetric minimum jerk; > 0: early peak).
+    curvature : float
+        Path bulge as a fraction of the reach length.
+    curvature_angle : float
+        Direction of the bulge about the path, radians (0: up).
+    noise : float
+        Amplitude of the smooth tremor/tracking noise, metres.
+    jitter : float
+        Trial-to-trial via-point jitter (standard deviation), metres.
+    task_offsets : dict of str to array, shape (3,)
+        The subject's personal offset of each task's goal, metres.
+    sloppy : bool
+        Large trial-to-trial variation with two alternating path styles.
+    """
+
+    name: str
+    arm_length: float
+    index: int
+    reach: float
+    workspace_scale: float
+    shoulder: np.ndarray
+    rest: np.ndarray
+    duration: float
+    profile_skew: float
+    curvature: float
+    curvature_angle: float
+    noise: float
+    jitter: float
+    task_offsets: dict = field(default_factory=dict)
+    sloppy: bool = False
+
+    def calibration_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """Bounding box (lower, upper), shape (3,) each, swept by the calibration half circles."""
+        lo = np.array([self.shoulder[0], self.shoulder[1] - self.reach, _calibration_z(self)])
+        hi = np.array([self.shoulder[0] + self.reach, self.shoulder[1] + self.reach,
+                       _calibration_z(self) + self.reach])
+        return lo, hi
+
+
+@dataclass(eq=False)
+class SubjectData:
+    """A subject with its calibration motions and demonstrations.
+
+    Attributes
+    ----------
+    subject : Subject
+    calibration : list of array, shape (T_i, 3)
+        The x-y and z-y half circles, in this order.
+    demos : list of Demonstration
+        Ordered by task (in ``TASKS`` order), then by demonstration index.
+    """
+
+    subject: Subject
+    calibration: list
+    demos: list = field(default_factory=list)
+
+    def workspace(self, z_factor: float | None = 0.9) -> Workspace:
+        """The subject's workspace from the calibration motions (Sec. 4.2.2)."""
+        return Workspace.from_calibration(self.calibration, z_factor=z_factor)
+
+    def by_task(self, task: str) -> list[Demonstration]:
+        """The demonstrations of one task."""
+        return [d for d in self.demos if d.task == task]
+
+
+# --------------------------------------------------------------------------- helpers
+def _rng(seed: int, index: int, *stream: int) -> np.random.Generator:
+    return np.random.default_rng(np.random.SeedSequence([int(seed), int(index), *map(int, stream)]))
+
+
+def _calibration_z(subject: Subject) -> float:
+    # the x-y half circle slides on the table; the z-y one starts there
+    return TABLE_TOP_Z + 0.015
+
+
+def min_jerk(u: np.ndarray) -> np.ndarray:
+    """Minimum-jerk profile ``10u^3 - 15u^4 + 6u^5`` on u clipped to [0, 1].
+
+    Parameters
+    ----------
+    u : array, shape (T,)
+
+    Returns
+    -------
+    s : array, shape (T,)
+        0 at u <= 0, 1 at u >= 1, zero velocity and acceleration at both ends.
+    """
+    u = np.clip(u, 0.0, 1.0)
+    return u ** 3 * (10.0 - 15.0 * u + 6.0 * u * u)
+
+
+def _skewed_profile(u: np.ndarray, skew: float) -> np.ndarray:
+    """Minimum jerk after a smooth time warp; ``skew > 0`` moves the speed peak earlier."""
+    u = np.clip(u, 0.0, 1.0)
+    if abs(skew) > 1e-9:
+        u = (1.0 - np.exp(-skew * u)) / (1.0 - np.exp(-skew))
+    return min_jerk(u)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v)
+    return v / n if n > 1e-12 else v
+
+
+@functools.lru_cache(maxsize=1)
+def _scene():
+    from drake_skills.sim.models import load_scene_config
+
+    return load_scene_config()
+
+
+def make_subject(index: int, seed: int = 0) -> Subject:
+    """Draw the body and habits of subject ``index`` (1-based).
+
+    Parameters
+    ----------
+    index : int
+        1-based subject number; subjects in :data:`SLOPPY_SUBJECTS` are sloppy.
+    seed : int
+        Non-negative base seed.
+    """
+    if int(index) < 1:
+        raise ValueError(f"subject index is 1-based, got {index!r}")
+    if int(seed) < 0:
+        raise ValueError(f"seed must be non-negative, got {seed!r}")
+    cfg = _scene().person
+    rng = _rng(seed, index, _STREAM_SUBJECT)
+    arm = float(rng.uniform(0.54, 0.68))
+    lean = float(cfg.lean * rng.uniform(0.85, 1.15))
+    scale = arm / cfg.arm_length * float(rng.uniform(0.92, 1.08))
+    seat = np.array([rng.normal(0, 0.03), rng.normal(0, 0.03), rng.normal(0, 0.03)])
+    shoulder = np.asarray(cfg.shoulder, float) + seat
+    # the wrist rests on the table edge: it moves with the seat in x-y, not in z
+    start = np.array([rng.normal(0, 0.02), rng.normal(0, 0.02), rng.normal(0, 0.003)])
+    rest = np.asarray(cfg.wrist_rest, float) + np.array([seat[0], seat[1], 0.0]) + start
+    sloppy = int(index) in SLOPPY_SUBJECTS
+    offsets = {task: rng.normal(0.0, 0.025, 3) for task in TASKS}
+    return Subject(
+        name=f"subject{int(index)}", arm_length=arm, index=int(index), reach=arm + lean,
+        workspace_scale=scale, shoulder=shoulder, rest=rest,
+        duration=float(rng.uniform(1.1, 1.8)), profile_skew=float(rng.uniform(-0.6, 1.4)),
+        curvature=float(rng.uniform(0.04, 0.12)), curvature_angle=float(rng.uniform(-0.9, 0.9)),
+        noise=float(rng.uniform(0.002, 0.005)), jitter=0.045 if sloppy else float(rng.uniform(0.008, 0.014)),
+        task_offsets=offsets, sloppy=sloppy)
+
+
+def calibration_motions(subject: Subject, seed: int = 0) -> list[np.ndarray]:
+    """The calibration half circles of Sec. 4.2.2 (Fig. 5(c)).
+
+    Parameters
+    ----------
+    subject : Subject
+    seed : int
+
+    Returns
+    -------
+    [xy, zy] : list of array, shape (T, 3)
+        ``xy``: a horizontal half circle of radius ``subject.reach`` about the shoulder at
+        table height, from the right through the front to the left. ``zy``: a vertical
+        half circle of the same radius in the plane ``x = shoulder_x + 0.45 reach``,
+        from the right at table height over the top to the left.
+    """
+    rng = _rng(seed, subject.index, _STREAM_CALIBRATION)
+    R, (xs, ys, _) = subject.reach, subject.shoulder
+    zc = _calibration_z(subject)
+    out = []
+    for plane in ("xy", "zy"):
+        T = float(rng.uniform(2.5, 3.5))
+        t = np.arange(int(round(T * RATE_HZ)) + 1) / RATE_HZ
+        a = np.pi * min_jerk(t / T)  # angle 0 -> pi
+        if plane == "xy":
+            p = np.stack([xs + R * np.sin(a), ys - R * np.cos(a), np.full_like(a, zc)], axis=1)
+        else:
+            p = np.stack([np.full_like(a, xs + 0.45 * R), ys - R * np.cos(a), zc + R * np.sin(a)], axis=1)
+        p = p + rng.normal(0.0, 0.0005, p.shape)  # motion-capture noise
+        out.append(p)
+    return out
+
+
+def _bezier(ctrl: np.ndarray, n: int) -> np.ndarray:
+    """Cubic Bezier curve through control points ``ctrl`` (4, 3), sampled at n points."""
+    s = np.linspace(0, 1, n)[:, None]
+    return ((1 - s) ** 3 * ctrl[0] + 3 * (1 - s) ** 2 * s * ctrl[1]
+            + 3 * (1 - s) * s ** 2 * ctrl[2] + s ** 3 * ctrl[3])
+
+
+@dataclass(eq=False)
+class ReachPlan:
+    """A planned wrist motion: a path timed by a skewed minimum-jerk profile, then a hold.
+
+    Attributes
+    ----------
+    path : array, shape (M, 3)
+        Densely sampled path, metres (world).
+    arc : array, shape (M,)
+        Arc length along ``path`` from 0.
+    goal : array, shape (3,)
+        Noise-free end of the reach.
+    T_move, T_hold : float
+        Reach duration and (minimum) hold at the goal, seconds.
+    skew : float
+        Speed-profile skew (see :func:`min_jerk`).
+    noise : array, shape (3, 3, 3)
+        Frequencies, phases and amplitudes of the smooth noise (3 sinusoids x 3 axes).
+    """
+
+    path: np.ndarray
+    arc: np.ndarray
+    goal: np.ndarray
+    T_move: float
+    T_hold: float
+    skew: float
+    noise: np.ndarray
+
+    def position(self, t: np.ndarray) -> np.ndarray:
+        """Wrist positions (T, 3) at times t (T,), with the smooth noise, without sensor noise."""
+        t = np.asarray(t, float)
+        sa = self.arc[-1] * _skewed_profile(t / self.T_move, self.skew)
+        y = np.stack([np.interp(sa, self.arc, self.path[:, k]) for k in range(3)], axis=1)
+        f, ph, a = self.noise
+        n = np.einsum("ka,tka->ta", a, np.sin(2 * np.pi * f[None] * t[:, None, None] + ph[None]))
+        fade = 0.5 * (1 - np.cos(np.pi * np.clip(t / 0.4, 0, 1)))  # the start is the rest position
+        return y + n * fade[:, None]
+
+
+def plan_reach(subject: Subject, task: str, rng: np.random.Generator) -> ReachPlan:
+    """Plan one wrist motion of ``subject`` doing ``task``.
+
+    The path is a straight lift off the table edge shared by all tasks (``person.lift``
+    of the scene, scaled to the subject), then a cubic Bezier curve leaving the lift
+    tangentially and bending (``curvature``) toward the task's goal. All control points
+    lie inside the subject's calibration box (shrunk by 2.5 cm), so the path does too.
+
+    Parameters
+    ----------
+    subject : Subject
+    task : str
+        One of :data:`TASKS`.
+    rng : Generator
+        The demonstration's random stream (a fixed number of draws).
+    """
+    cfg = _scene()
+    person, tcfg = cfg.person, cfg.tasks[task]
+    s = subject.workspace_scale
+    lo, hi = subject.calibration_box()
+    lo_in, hi_in = lo + 0.025, hi - 0.025
+    lo_in[2] = max(lo_in[2], TABLE_TOP_Z + 0.04)
+
+    def inside(p):
+        return np.clip(p, lo_in, hi_in)
+
+    p0 = subject.rest + rng.normal(0, [0.008, 0.008, 0.003]) * (1.8 if subject.sloppy else 1.0)
+    p0 = np.clip(p0, lo + 0.02, hi - 0.02)
+    p1 = inside(p0 + s * np.asarray(person.lift, float) * (1 + rng.normal(0, 0.04)))
+    goal = (subject.rest + s * (np.asarray(tcfg.reach, float) - np.asarray(person.wrist_rest, float))
+            + subject.task_offsets[task] + rng.normal(0, subject.jitter, 3))
+    # no further than 92 % of the reach from the shoulder, and inside the calibrated box
+    d = goal - subject.shoulder
+    if np.linalg.norm(d) > 0.92 * subject.reach:
+        goal = subject.shoulder + 0.92 * subject.reach * _unit(d)
+    goal = inside(goal)
+
+    d1 = _unit(p1 - p0)
+    chord = goal - p1
+    L = float(np.linalg.norm(chord))
+    up = np.array([0.0, 0.0, 1.0])
+    n_up = _unit(up - (up @ chord) / max(L * L, 1e-12) * chord)  # "up", perpendicular to the chord
+    n_side = _unit(np.cross(chord, n_up))
+    angle = subject.curvature_angle + rng.normal(0, 0.15)
+    curv = subject.curvature * (1 + rng.normal(0, 0.15))
+    style, extra = rng.random(), rng.normal(0, 0.06)
+    if subject.sloppy:
+        # two path styles (over the top / swung sideways) and a loose curvature
+        angle += (np.pi / 2) * (1.0 if style < 0.5 else -0.2)
+        curv = abs(curv * 2.2 + extra)
+    bulge = curv * L * (np.cos(angle) * n_up + np.sin(angle) * n_side)
+    b1 = inside(p1 + 0.35 * L * d1)
+    b2 = inside(goal + 0.3 * (b1 - goal) + (4.0 / 3.0) * bulge)
+    seg_a = p0 + np.linspace(0, 1, 200)[:, None] * (p1 - p0)
+    seg_b = _bezier(np.stack([p1, b1, b2, goal]), 1200)
+    path = np.concatenate([seg_a, seg_b[1:]])
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+
+    jit = 0.15 if subject.sloppy else 0.07
+    T_move = subject.duration * _TASK_DURATION[task] * float(np.exp(rng.normal(0, jit)))
+    T_hold = float(rng.uniform(0.5, 0.8))
+    skew = subject.profile_skew + rng.normal(0, 0.2)
+    noise = np.stack([rng.uniform(0.4, 1.6, (3, 3)), rng.uniform(0, 2 * np.pi, (3, 3)),
+                      rng.normal(0, subject.noise / np.sqrt(3), (3, 3))])
+    return ReachPlan(path=path, arc=arc, goal=goal, T_move=T_move, T_hold=T_hold, skew=skew, noise=noise)
+
+
+# --------------------------------------------------------------------------- robot
+class _RobotIK:
+    """Inverse kinematics of the IIWA7 alone, with cached grasp solutions."""
+
+    def __init__(self):
+        from drake_skills.sim.models import FLANGE_FRAME, HOME_Q, make_iiwa7_plant
+
+        cfg = _scene()
+        self.plant = make_iiwa7_plant(cfg.robot_base.transform())
+        self.flange = self.plant.GetFrameByName(FLANGE_FRAME)
+        self.home = np.array(HOME_Q)
+        self.base_xyz = np.asarray(cfg.robot_base.xyz, float)
+        self._grasp: dict[str, np.ndarray] = {}
+
+    def solve(self, p_WE: np.ndarray, *, pos_tol: float, seed: np.ndarray, R_WE=None,
+              axis_W: np.ndarray | None = None, theta_bound: float) -> np.ndarray | None:
+        """Joint angles (7,) putting the flange at p_WE, or None if IK fails.
+
+        Orientation: either the full rotation ``R_WE`` within ``theta_bound``, or only the
+        flange z axis within ``theta_bound`` of the unit vector ``axis_W``.
+        """
+        from pydrake.math import RotationMatrix
+        from pydrake.multibody.inverse_kinematics import InverseKinematics
+        from pydrake.solvers import Solve
+
+        ik = InverseKinematics(self.plant)
+        W = self.plant.world_frame()
+        ik.AddPositionConstraint(self.flange, np.zeros(3), W, p_WE - pos_tol, p_WE + pos_tol)
+        if R_WE is not None:
+            ik.AddOrientationConstraint(W, R_WE, self.flange, RotationMatrix(), theta_bound)
+        else:
+            ik.AddAngleBetweenVectorsConstraint(W, axis_W, self.flange, np.array([0.0, 0.0, 1.0]),
+                                                0.0, theta_bound)
+        # stay close to the seed: no jumps between IK branches
+        ik.prog().AddQuadraticErrorCost(np.eye(7), seed, ik.q())
+        result = Solve(ik.prog(), seed)
+        if not result.is_success():
+            return None
+        return np.asarray(result.GetSolution(ik.q()), float)
+
+    def grasp(self, task: str) -> np.ndarray:
+        """Cached joint angles (7,) of the task's grasp pose (2 mm, 2 degrees)."""
+        if task not in self._grasp:
+            X = _scene().tasks[task].grasp.transform()
+            q = self.solve(X.translation(), R_WE=X.rotation(), theta_bound=np.deg2rad(2.0), pos_tol=0.002,
+                           seed=self.home)
+            if q is None:
+                raise RuntimeError(f"inverse kinematics found no solution for the grasp pose of task {task!r}")
+            self._grasp[task] = q
+        return self._grasp[task]
+
+    def handover_position(self, task: str, wrist: np.ndarray) -> np.ndarray:
+        """Flange position (3,) of the handover for a final wrist position (3,)."""
+        cfg = _scene()
+        tcfg = cfg.tasks[task]
+        toward = self.base_xyz - wrist
+        toward[2] = 0.0
+        p = wrist + tcfg.handover_distance * _unit(toward) + np.array([0.0, 0.0, tcfg.handover_dz])
+        # keep the wrist centre (joint 6, 0.126 m behind the flange along the approach axis)
+        # in the band of horizontal distances the robot reaches comfortably
+        r_min, r_max = cfg.handover_radius
+        back = 0.126 * np.cos(np.deg2rad(tcfg.handover_tilt_deg))
+        d = p[:2] - self.base_xyz[:2]
+        r = float(np.linalg.norm(d))
+        p[:2] = self.base_xyz[:2] + d / r * np.clip(r, r_min + back, r_max + back)
+        return p
+
+    def handover_axis(self, task: str, p_WE: np.ndarray) -> np.ndarray:
+        """Unit approach axis (3,) of the flange at the handover point p_WE."""
+        tilt = np.deg2rad(_scene().tasks[task].handover_tilt_deg)
+        h = _unit(np.array([p_WE[0] - self.base_xyz[0], p_WE[1] - self.base_xyz[1], 0.0]))
+        return np.cos(tilt) * h + np.array([0.0, 0.0, -np.sin(tilt)])
+
+    def handover(self, task: str, wrist: np.ndarray) -> np.ndarray:
+        """Joint angles (7,) handing over near the final wrist position, seeded by the grasp."""
+        tcfg = _scene().tasks[task]
+        p = self.handover_position(task, wrist)
+        axis = self.handover_axis(task, p)
+        theta = np.deg2rad(tcfg.handover_tolerance_deg)
+        q_grasp = self.grasp(task)
+        for tol_scale, seed in ((1.0, q_grasp), (2.0, q_grasp), (2.0, self.home)):
+            q = self.solve(p, axis_W=axis, theta_bound=min(tol_scale * theta, np.pi / 2),
+                           pos_tol=0.005 * tol_scale, seed=seed)
+            if q is not None:
+                if tol_scale > 1.0:
+                    log.debug("handover IK of %s needed relaxed tolerances at %s", task, p)
+                return q
+        raise RuntimeError(f"inverse kinematics found no handover for task {task!r} at {np.round(p, 3).tolist()}")
+
+
+@functools.lru_cache(maxsize=1)
+def _robot_ik() -> _RobotIK:
+    return _RobotIK()
+
+
+def grasp_configuration(task: str) -> np.ndarray:
+    """IIWA7 joint angles, shape (7,), of the task's grasp pose (IK solved once, cached)."""
+    if task not in TASKS:
+        raise ValueError(f"unknown task {task!r}; tasks are {TASKS}")
+    return _robot_ik().grasp(task).copy()
+
+
+def handover_position(task: str, wrist) -> np.ndarray:
+    """Flange position (3,) of the handover for the person's final wrist position (3,)."""
+    if task not in TASKS:
+        raise ValueError(f"unknown task {task!r}; tasks are {TASKS}")
+    return _robot_ik().handover_position(task, np.asarray(wrist, float))
+
+
+def robot_motion(task: str, wrist_goal: np.ndarray, t_human: float,
+                 rng: np.random.Generator) -> tuple[float, Callable[[np.ndarray], np.ndarray]]:
+    """Plan the robot's joint trajectory home -> grasp -> handover.
+
+    The two minimum-jerk segments (stopping at the grasp) last long enough that no joint
+    exceeds 85 % of its speed limit; the robot starts 0.1-0.25 s after the human.
+
+    Parameters
+    ----------
+    task : str
+    wrist_goal : array, shape (3,)
+        The person's wrist at the end of the reach (the handover follows it).
+    t_human : float
+        Duration of the human motion (reach + hold), seconds.
+    rng : Generator
+
+    Returns
+    -------
+    t_end : float
+        When the robot arrives at the handover, seconds (may exceed ``t_human``).
+    q_of_t : callable
+        Maps times (T,) to joint angles (T, 7), radians.
+    """
+    from drake_skills.sim.models import IIWA7_VELOCITY_LIMITS
+
+    ik = _robot_ik()
+    q_grasp = ik.grasp(task)
+    q_hand = ik.handover(task, wrist_goal)
+    t_start = float(rng.uniform(0.1, 0.25))
+    slack = float(rng.uniform(0.0, 0.1))
+    frac = float(rng.uniform(0.45, 0.55))
+    span = t_human - slack - t_start
+    vmax = 0.85 * IIWA7_VELOCITY_LIMITS
+    T1 = max(frac * span, 1.875 * float(np.max(np.abs(q_grasp - ik.home) / vmax)))  # peak = 1.875 dq / T
+    T2 = max((1 - frac) * span, 1.875 * float(np.max(np.abs(q_hand - q_grasp) / vmax)))
+    t_grasp, t_end = t_start + T1, t_start + T1 + T2
+
+    def q_of_t(t):
+        t = np.asarray(t, float)
+        s1 = min_jerk((t - t_start) / T1)[:, None]
+        s2 = min_jerk((t - t_grasp) / T2)[:, None]
+        return ik.home + s1 * (q_grasp - ik.home) + s2 * (q_hand - q_grasp)
+
+    return t_end, q_of_t
+
+
+def make_demonstration(subject: Subject, task: str, k: int, seed: int = 0) -> Demonstration:
+    """Demonstration ``k`` (0-based) of ``task`` by ``subject``.
+
+    Returns
+    -------
+    Demonstration
+        ``t`` (T,) from 0 at 150 Hz, ``human`` (T, 3) wrist in metres, ``robot`` (T, 7)
+        IIWA7 joints in radians; the hand holds still until the robot has arrived.
+    """
+    from drake_skills.sim.models import IIWA7_JOINT_LIMITS
+
+    rng = _rng(seed, subject.index, _STREAM_DEMO, TASKS.index(task), k)
+    plan = plan_reach(subject, task, rng)
+    wrist_goal = plan.position(np.array([plan.T_move]))[0]
+    t_human = plan.T_move + plan.T_hold
+    t_end, q_of_t = robot_motion(task, wrist_goal, t_human, rng)
+    T = max(t_human, t_end + float(rng.uniform(0.05, 0.15)))
+    t = np.arange(int(round(T * RATE_HZ)) + 1) / RATE_HZ
+    wrist = plan.position(t) + rng.normal(0, 0.0005, (t.shape[0], 3))  # motion-capture noise
+    q = q_of_t(t)
+    lo, hi = IIWA7_JOINT_LIMITS
+    if (q < lo).any() or (q > hi).any():
+        raise AssertionError(f"{subject.name} {task} {k}: robot trajectory leaves the joint limits")
+    return Demonstration(t=t, human=wrist, robot=q, task=task, subject=subject.name,
+                         name=f"{subject.name}/{task}_{k:02d}")
+
+
+# --------------------------------------------------------------------------- generation
+def generate_subject(index: int, n_demos: int = 15, seed: int = 0, tasks=TASKS) -> SubjectData:
+    """Calibration and demonstrations of one subject.
+
+    Parameters
+    ----------
+    index : int
+        1-based subject number (``"subject{index}"``).
+    n_demos : int
+        Demonstrations per task.
+    seed : int
+        Non-negative base seed.
+    tasks : sequence of str
+        Subset of :data:`TASKS`.
+
+    Returns
+    -------
+    SubjectData
+        ``demos`` ordered by task then demo; ``Demonstration.name`` like ``"subject3/bowl_07"``
+        (demo numbers from 0), ``t`` shape (T,), ``human`` (T, 3), ``robot`` (T, 7).
+    """
+    tasks = tuple(tasks)
+    unknown = [t for t in tasks if t not in TASKS]
+    if unknown:
+        raise ValueError(f"unknown task(s) {unknown}; tasks are {TASKS}")
+    if int(n_demos) < 0:
+        raise ValueError(f"n_demos must be non-negative, got {n_demos!r}")
+    subject = make_subject(index, seed)
+    data = SubjectData(subject=subject, calibration=calibration_motions(subject, seed))
+    for task in tasks:
+        for k in range(int(n_demos)):
+            data.demos.append(make_demonstration(subject, task, k, seed))
+        log.debug("%s: %d demonstrations of %s", subject.name, n_demos, task)
+    return data
+
+
+def generate_salad(n_subjects: int = 10, n_demos: int = 15, seed: int = 0, tasks=TASKS) -> list[SubjectData]:
+    """Subjects 1..n_subjects of the salad scenario (see :func:`generate_subject`)."""
+    if int(n_subjects) < 1:
+        raise ValueError(f"n_subjects must be at least 1, got {n_subjects!r}")
+    return [generate_subject(i, n_demos, seed, tasks) for i in range(1, int(n_subjects) + 1)]
