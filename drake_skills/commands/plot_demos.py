@@ -1,0 +1,95 @@
+"""``drake-skills plot-demos DIR``: human wrist trajectories per task, top and front views (Fig. 5(b))."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+#: Colour per task (matplotlib tab10); unknown tasks cycle through the rest.
+TASK_COLOURS = {"board": "tab:blue", "tomato": "tab:red", "bowl": "tab:green", "dressing": "tab:orange",
+                "standup": "tab:purple"}
+
+
+def register(sub) -> None:
+    from drake_skills.commands import add_common
+
+    p = sub.add_parser(
+        "plot-demos", help="plot the human wrist trajectories of one subject (top and front views)",
+        description="Plot the human wrist trajectories of the demonstrations under DIR for one subject, one "
+                    "colour per task, seen from the top (x-y) and from the front (y-z), like the paper's "
+                    "Fig. 5(b). Writes OUT/demos.png.")
+    p.add_argument("demos_dir", type=Path, metavar="DIR", help="directory of demonstrations (searched recursively)")
+    p.add_argument("--subject", default=None, help="subject to plot (default: the first one found)")
+    add_common(p, "plot-demos")
+    p.set_defaults(func=run)
+
+
+def plot_demos(demos, title: str = ""):
+    """Figure with top (x-y) and front (y-z) views of the human wrist trajectories.
+
+    Parameters
+    ----------
+    demos : list of Demonstration
+        With ``human`` of shape (T, 3) (or (T, 2): only the top view is meaningful).
+    title : str
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (top, front) = plt.subplots(1, 2, figsize=(11, 5))
+    spare = iter(["tab:brown", "tab:pink", "tab:gray", "tab:olive", "tab:cyan"] * 10)
+    colours = dict(TASK_COLOURS)
+    seen = set()
+    for d in demos:
+        task = d.task or "unlabelled"
+        if task not in colours:
+            colours[task] = next(spare)
+        c = colours[task]
+        label = task if task not in seen else None
+        seen.add(task)
+        h = d.human
+        top.plot(h[:, 1], h[:, 0], color=c, lw=0.8, alpha=0.8, label=label)
+        top.plot(h[0, 1], h[0, 0], "k.", ms=3)
+        if h.shape[1] >= 3:
+            front.plot(h[:, 1], h[:, 2], color=c, lw=0.8, alpha=0.8)
+            front.plot(h[0, 1], h[0, 2], "k.", ms=3)
+    # the person sits at -x looking toward +x: show y increasing to the left, as seen by the person
+    top.set_xlabel("y [m] (person's left ←)")
+    top.set_ylabel("x [m] (away from the person ↑)")
+    top.set_title("top view")
+    front.set_xlabel("y [m] (person's left ←)")
+    front.set_ylabel("z [m]")
+    front.set_title("front view (from behind the person)")
+    for ax in (top, front):
+        ax.invert_xaxis()
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(alpha=0.3)
+    top.legend(loc="best", fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def run(args: argparse.Namespace) -> int:
+    from drake_skills.data.demos import load_dir
+
+    demos = load_dir(args.demos_dir)
+    if not demos:
+        raise ValueError(f"no demonstrations (.npz or .csv) found under '{args.demos_dir}'")
+    subjects = sorted({d.subject for d in demos if d.subject}, key=lambda s: (len(s), s))
+    subject = args.subject or (subjects[0] if subjects else None)
+    if subject is not None:
+        if subject not in subjects:
+            raise ValueError(f"subject {subject!r} not found; subjects are {subjects}")
+        demos = [d for d in demos if d.subject == subject]
+    fig = plot_demos(demos, title=f"{subject or args.demos_dir}: {len(demos)} demonstrations")
+    args.out.mkdir(parents=True, exist_ok=True)
+    path = args.out / "demos.png"
+    fig.savefig(path, dpi=110)
+    print(f"wrote {path} ({len(demos)} demonstrations of {subject or 'all subjects'})")
+    return 0
