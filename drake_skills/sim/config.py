@@ -19,7 +19,7 @@ class DecisionConfig:
     # ... then stay within still_radius of its last position for this long (s)
     still_duration: float = 0.25
     # radius of "still"
-    still_radius: float = 0.05
+    still_radius: float = 0.1
     # decide this long after the trial start whatever the wrist does (s); null: when it stops
     decision_time: Optional[float] = None
     # decide at the latest this long after the trial start (s)
@@ -53,8 +53,10 @@ class MeshcatConfig:
     frames_per_second: float = 32.0
     # radius of the sphere drawn at the person's wrist (m)
     wrist_radius: float = 0.035
-    # let the robot touch the table and objects (False: robot-scene contact is filtered out)
-    show_collision: bool = False
+    # camera position, metres (world): behind and left of the seated person
+    camera_position: list[float] = field(default_factory=lambda: [-1.9, -1.7, 1.9])
+    # point the camera looks at, metres (world): above the table centre
+    camera_target: list[float] = field(default_factory=lambda: [0.0, 0.1, 0.9])
 
 
 @dataclass

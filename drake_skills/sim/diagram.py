@@ -71,8 +71,14 @@ def make_meshcat() -> Meshcat:
     return Meshcat(MeshcatParams(host="localhost", port=None))
 
 
-def _filter_robot_scene_contact(plant: MultibodyPlant, scene_graph: SceneGraph, iiwa: ModelInstanceIndex) -> None:
-    """No contact between the robot and the welded scene (the robot is taught to reach into it)."""
+def _filter_robot_contact(plant: MultibodyPlant, scene_graph: SceneGraph, iiwa: ModelInstanceIndex, *,
+                          with_scene: bool) -> None:
+    """No contact among the robot's own links and, unless ``with_scene``, with the welded scene.
+
+    The primitive geometry of links two apart (e.g. 5 and 7) overlaps at
+    ordinary poses, and Drake only filters parent-child pairs; the
+    demonstrations' inverse kinematics does not avoid the objects either.
+    """
     robot = GeometrySet()
     scene = GeometrySet()
     for body_index in range(plant.num_bodies()):
@@ -81,7 +87,10 @@ def _filter_robot_scene_contact(plant: MultibodyPlant, scene_graph: SceneGraph, 
         if not ids:
             continue
         (robot if body.model_instance() == iiwa else scene).Add(ids)
-    scene_graph.collision_filter_manager().Apply(CollisionFilterDeclaration().ExcludeBetween(robot, scene))
+    declaration = CollisionFilterDeclaration().ExcludeWithin(robot)
+    if not with_scene:
+        declaration.ExcludeBetween(robot, scene)
+    scene_graph.collision_filter_manager().Apply(declaration)
 
 
 def build_diagram(config: SimConfig, *, library: SkillLibrary, workspace: Workspace,
@@ -110,8 +119,7 @@ def build_diagram(config: SimConfig, *, library: SkillLibrary, workspace: Worksp
     iiwa = models["iiwa"]
     plant.Finalize()
     plant.SetDefaultPositions(iiwa, HOME_Q)
-    if not config.robot_scene_contact:
-        _filter_robot_scene_contact(plant, scene_graph, iiwa)
+    _filter_robot_contact(plant, scene_graph, iiwa, with_scene=config.robot_scene_contact)
 
     controller_plant = make_iiwa7_plant(scene.robot_base.transform())
     n = controller_plant.num_positions()
@@ -151,6 +159,8 @@ def build_diagram(config: SimConfig, *, library: SkillLibrary, workspace: Worksp
         params.role = Role.kIllustration
         params.delete_on_initialization_event = False  # one diagram, many trials, one recording
         visualizer = MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat, params)
+        meshcat.SetCameraPose(np.asarray(config.meshcat.camera_position, float),
+                              np.asarray(config.meshcat.camera_target, float))
         marker = builder.AddSystem(WristMarker(meshcat, config.meshcat.publish_period, config.meshcat.wrist_radius,
                                                p_WL=scene.robot_base.transform().translation() + [0, 0.25, 0.75]))
         marker.set_name("wrist_marker")

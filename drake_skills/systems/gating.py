@@ -34,7 +34,7 @@ class DecisionRule:
     #: ... and then stay within ``still_radius`` of its last position for this long (s).
     still_duration: float = 0.25
     #: Radius of "still".
-    still_radius: float = 0.05
+    still_radius: float = 0.1
     #: Decide at this time after the first sample (s) whatever the motion does
     #: (None: only when the motion is over).
     decision_time: float | None = None

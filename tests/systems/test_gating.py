@@ -23,7 +23,8 @@ def _motion(y, dt=1 / 64):
 def test_motion_is_over_needs_travel_then_stillness():
     still = np.zeros((40, 3))
     assert not motion_is_over(_motion(still), RULE)  # never moved
-    moving = np.outer(np.linspace(0, 3, 40), [1, 0, 0])
+    # 0.2 units per tick: faster than still_radius (0.1) per still_duration
+    moving = np.outer(np.linspace(0, 7.8, 40), [1, 0, 0])
     assert not motion_is_over(_motion(moving), RULE)  # still moving
     stop = np.vstack([moving, np.repeat(moving[-1:], 17, axis=0)])  # 16 ticks = 0.25 s still
     assert motion_is_over(_motion(stop), RULE)
