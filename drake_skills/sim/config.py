@@ -17,9 +17,9 @@ class DecisionConfig:
     # the wrist must first move this far from its start
     min_travel: float = 1.0
     # ... then stay within still_radius of its last position for this long (s)
-    still_duration: float = 0.25
+    still_duration: float = 0.4
     # radius of "still"
-    still_radius: float = 0.1
+    still_radius: float = 0.05
     # decide this long after the trial start whatever the wrist does (s); null: when it stops
     decision_time: Optional[float] = None
     # decide at the latest this long after the trial start (s)

@@ -32,9 +32,9 @@ class DecisionRule:
     #: The wrist must first get this far from its start position.
     min_travel: float = 1.0
     #: ... and then stay within ``still_radius`` of its last position for this long (s).
-    still_duration: float = 0.25
+    still_duration: float = 0.4
     #: Radius of "still".
-    still_radius: float = 0.1
+    still_radius: float = 0.05
     #: Decide at this time after the first sample (s) whatever the motion does
     #: (None: only when the motion is over).
     decision_time: float | None = None

@@ -23,12 +23,13 @@ def _motion(y, dt=1 / 64):
 def test_motion_is_over_needs_travel_then_stillness():
     still = np.zeros((40, 3))
     assert not motion_is_over(_motion(still), RULE)  # never moved
-    # 0.2 units per tick: faster than still_radius (0.1) per still_duration
+    # 0.2 units per tick: never within still_radius (0.05) for still_duration
     moving = np.outer(np.linspace(0, 7.8, 40), [1, 0, 0])
     assert not motion_is_over(_motion(moving), RULE)  # still moving
-    stop = np.vstack([moving, np.repeat(moving[-1:], 17, axis=0)])  # 16 ticks = 0.25 s still
+    ticks = int(np.ceil(RULE.still_duration * 64))  # still for still_duration
+    stop = np.vstack([moving, np.repeat(moving[-1:], ticks + 1, axis=0)])
     assert motion_is_over(_motion(stop), RULE)
-    assert not motion_is_over(_motion(stop[:-2]), RULE)
+    assert not motion_is_over(_motion(stop[:-3]), RULE)  # still for 24/64 s < still_duration
 
 
 def test_decision_time_overrides_stillness():
@@ -52,7 +53,7 @@ def test_recognize_motion_finds_the_demonstrated_skill(library, demo):
 def test_gating_step_decides_once_and_then_freezes(library, demo):
     y = WORKSPACE.normalize(demo.human)
     state = GatingDecision()
-    for i, p in enumerate(np.vstack([y, np.repeat(y[-1:], 20, axis=0)])):
+    for i, p in enumerate(np.vstack([y, np.repeat(y[-1:], 40, axis=0)])):
         state = gating_step(state, i / 64, p, library, RULE)
         if state.decided:
             break
@@ -67,7 +68,7 @@ def test_outputs_pending_then_the_component_after_forced_updates(library, demo):
     assert gating.GetOutputPort("responsibilities").Eval(context) == {}
     y = WORKSPACE.normalize(demo.human)
     scratch = context.Clone()
-    samples = np.vstack([y[::2], np.repeat(y[-1:], 20, axis=0)])
+    samples = np.vstack([y[::2], np.repeat(y[-1:], 40, axis=0)])
     for i, p in enumerate(samples):
         context.SetTime(i / 64)
         gating.GetInputPort("normalized_wrist").FixValue(context, p)
