@@ -67,8 +67,8 @@ def run(args: argparse.Namespace) -> int:
     acc = summary.accuracy_after_teaching
     print(f"accuracy after teaching: {'n/a' if not math.isfinite(acc) else f'{100 * acc:.0f}%'} "
           f"({summary.known_trials} trials of taught tasks); unknown -> taught: {summary.unknown}; "
-          f"components: {summary.components}")
-    print(f"flange error at handover: mean {summary.mean_flange_error_cm:.1f} cm, "
+          f"wrong skill executed: {summary.wrong}; components: {summary.components}")
+    print(f"flange error at handover (right skill): mean {summary.mean_flange_error_cm:.1f} cm, "
           f"max {summary.max_flange_error_cm:.1f} cm; joint tracking RMS {summary.mean_tracking_rms_rad:.4f} rad; "
           f"joint limits {'held' if summary.within_limits else 'VIOLATED'}")
     print(f"simulated {summary.simulated_seconds:.1f} s in {summary.wall_seconds:.1f} s wall time")

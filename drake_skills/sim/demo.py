@@ -88,6 +88,9 @@ class DemoSummary:
     accuracy_after_teaching: float
     #: Trials answered "unknown" (and taught).
     unknown: int
+    #: Trials that executed the skill of another task (for an untaught task too).
+    wrong: int
+    #: Flange error at handover over the trials that executed the right skill (cm).
     mean_flange_error_cm: float
     max_flange_error_cm: float
     mean_tracking_rms_rad: float
@@ -326,12 +329,13 @@ def run_collaboration(config: SimConfig, demos: list[Demonstration], workspace: 
         meshcat.StopRecording()
         meshcat.PublishRecording()
     known = [r for r in results if r.task_known]
-    flange = np.array([r.flange_error_cm for r in results if math.isfinite(r.flange_error_cm)])
+    flange = np.array([r.flange_error_cm for r in results if r.correct and math.isfinite(r.flange_error_cm)])
     rms = np.array([r.tracking_rms_rad for r in results if math.isfinite(r.tracking_rms_rad)])
     summary = DemoSummary(
         trials=len(results), known_trials=len(known),
         accuracy_after_teaching=float(np.mean([r.correct for r in known])) if known else float("nan"),
         unknown=sum(r.component == UNKNOWN for r in results),
+        wrong=sum(r.component != UNKNOWN and not r.correct for r in results),
         mean_flange_error_cm=float(flange.mean()) if flange.size else float("nan"),
         max_flange_error_cm=float(flange.max()) if flange.size else float("nan"),
         mean_tracking_rms_rad=float(rms.mean()) if rms.size else float("nan"),
