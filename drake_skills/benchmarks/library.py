@@ -22,8 +22,19 @@ T = 150
 
 
 def _skill_bank(n_skills: int, rng):
-    """Random smooth skills far apart in normalized units: (human end points, bends, robot goals)."""
-    goals = rng.uniform(-10, 10, (n_skills, 3))
+    """Random smooth skills far apart in normalized units: (human end points, bends, robot goals).
+
+    End points are drawn with rejection so that every pair is at least 6 units
+    apart (about 2 RMS units in weight space), so the library should find
+    ``n_skills`` components and the timings are taken at the stated K.
+    """
+    half = 10.0 * max(1.0, (n_skills / 5.0) ** (1 / 3))
+    goals = []
+    while len(goals) < n_skills:
+        g = rng.uniform(-half, half, 3)
+        if all(np.linalg.norm(g - o) >= 6.0 for o in goals):
+            goals.append(g)
+    goals = np.array(goals)
     bends = rng.uniform(-4, 4, (n_skills, 3))
     q_goals = rng.uniform(-1.5, 1.5, (n_skills, 7))
     return goals, bends, q_goals
@@ -51,8 +62,8 @@ def _median_ms(fn, repeats: int) -> float:
 def _library_with(K: int, rng):
     bank = _skill_bank(K, rng)
     lib = SkillLibrary(LibraryConfig(**CONFIG))
-    for rep in range(3):
-        for k in range(K):
+    for k in range(K):  # three demos per skill in a row: support 3 survives the deletion rule
+        for rep in range(3):
             lib.partial_fit(_demo(bank, k, rng))
     return lib, bank
 
