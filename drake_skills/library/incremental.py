@@ -33,6 +33,7 @@ Deviations from the printed equations, each deliberate and tested:
 from __future__ import annotations
 
 import logging
+from pathlib import Path
 from dataclasses import dataclass, field, fields
 from functools import lru_cache
 from typing import Sequence
@@ -747,11 +748,14 @@ class SkillLibrary:
         return mean_r, cov_r
 
     # ---------------------------------------------------------------- storage
-    def save(self, path) -> None:
-        """Write the library atomically to ``path`` (.npz, no pickle)."""
+    def save(self, path) -> Path:
+        """Write the library atomically to ``path`` (.npz, no pickle); returns the path written.
+
+        ``.npz`` is appended to a path without it.
+        """
         from drake_skills.library.storage import save_library
 
-        save_library(self, path)
+        return save_library(self, path)
 
     @classmethod
     def load(cls, path) -> "SkillLibrary":
