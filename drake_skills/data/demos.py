@@ -47,6 +47,25 @@ def _atomic_write(path: Path, write) -> None:
         raise
 
 
+def _read_npz(path: Path, where: str) -> dict[str, np.ndarray]:
+    """The arrays of an npz archive, never unpickling anything.
+
+    A file that is not a zip archive is rejected before numpy sees it: numpy
+    would try to read it as a pickle and suggest ``allow_pickle=True``.
+    """
+    if not zipfile.is_zipfile(path):
+        raise ValueError(f"{where}: not an npz file (not a zip archive; truncated or another format?)")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return {k: z[k] for k in z.files}
+    except ValueError as exc:
+        if "pickle" in str(exc):
+            raise ValueError(f"{where}: holds Python objects (pickled data), which are never loaded") from None
+        raise ValueError(f"{where}: cannot read npz ({exc})") from None
+    except (OSError, zipfile.BadZipFile, EOFError) as exc:
+        raise ValueError(f"{where}: not an npz file ({exc})") from None
+
+
 # --------------------------------------------------------------------------- npz
 def save_npz(demo: Demonstration, path: str | Path) -> Path:
     """Write ``demo`` to ``path`` (.npz, uncompressed, no pickled objects).
@@ -93,17 +112,7 @@ def load_npz(path: str | Path) -> Demonstration:
     where = f"demo '{path}'"
     if not path.is_file():
         raise FileNotFoundError(f"{where}: no such file")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            if not isinstance(z, np.lib.npyio.NpzFile):
-                raise ValueError(f"{where}: not an npz archive (a single .npy array)")
-            contents = {k: z[k] for k in z.files}
-    except ValueError as exc:
-        if str(exc).startswith(where):
-            raise
-        raise ValueError(f"{where}: cannot read npz ({exc})") from None
-    except (OSError, zipfile.BadZipFile, EOFError) as exc:
-        raise ValueError(f"{where}: not an npz file ({exc})") from None
+    contents = _read_npz(path, where)
     missing = [k for k in ("t", "human") if k not in contents]
     if missing:
         raise ValueError(f"{where}: missing array(s) {missing}; has {sorted(contents)}")
@@ -278,17 +287,7 @@ def load_calibration(path: str | Path) -> dict[str, np.ndarray]:
     where = f"calibration '{path}'"
     if not path.is_file():
         raise FileNotFoundError(f"{where}: no such file")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            if not isinstance(z, np.lib.npyio.NpzFile):
-                raise ValueError(f"{where}: not an npz archive (a single .npy array)")
-            contents = {k: z[k] for k in z.files}
-    except ValueError as exc:
-        if str(exc).startswith(where):
-            raise
-        raise ValueError(f"{where}: cannot read npz ({exc})") from None
-    except (OSError, zipfile.BadZipFile, EOFError) as exc:
-        raise ValueError(f"{where}: not an npz file ({exc})") from None
+    contents = _read_npz(path, where)
     if not contents:
         raise ValueError(f"{where}: holds no calibration motions")
     out = {k: as_finite_array(_numeric(v, k, where), f"motion '{k}'", ndim=2, min_rows=2, where=where)

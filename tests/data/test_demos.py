@@ -1,0 +1,118 @@
+"""Demonstration files (npz, CSV, directories, calibration): round trips and errors that name the file."""
+import numpy as np
+import pytest
+
+from drake_skills.data.demonstration import Demonstration
+from drake_skills.data.demos import (load_calibration, load_csv, load_demo, load_dir, load_npz, save_calibration,
+                                     save_csv, save_npz)
+
+
+def _demo(T=40, robot=True, seed=0):
+    rng = np.random.default_rng(seed)
+    t = np.arange(T) / 150.0
+    human = np.cumsum(rng.normal(0, 0.01, (T, 3)), axis=0)
+    q = np.cumsum(rng.normal(0, 0.01, (T, 7)), axis=0) if robot else None
+    return Demonstration(t=t, human=human, robot=q, task="bowl", subject="subject1")
+
+
+@pytest.mark.parametrize("save, load, suffix", [(save_npz, load_npz, ".npz"), (save_csv, load_csv, ".csv")])
+@pytest.mark.parametrize("robot", [True, False])
+def test_round_trip_is_exact(tmp_path, save, load, suffix, robot):
+    demo = _demo(robot=robot)
+    back = load(save(demo, tmp_path / f"d{suffix}"))
+    np.testing.assert_array_equal(back.t, demo.t)
+    np.testing.assert_array_equal(back.human, demo.human)
+    if robot:
+        np.testing.assert_array_equal(back.robot, demo.robot)
+    else:
+        assert back.robot is None
+    assert (back.task, back.subject) == ("bowl", "subject1")
+
+
+def test_csv_header_is_the_documented_one(tmp_path):
+    path = save_csv(_demo(), tmp_path / "d.csv")
+    assert path.read_text().splitlines()[0] == "t,hx,hy,hz,q1,q2,q3,q4,q5,q6,q7,task,subject"
+
+
+def test_load_dir_finds_both_formats_and_skips_calibration(tmp_path):
+    save_npz(_demo(seed=1), tmp_path / "a" / "one.npz")
+    save_csv(_demo(seed=2), tmp_path / "b" / "two.csv")
+    save_calibration(tmp_path / "a" / "calibration.npz", [np.random.default_rng(0).normal(size=(10, 3))] * 2)
+    demos = load_dir(tmp_path)
+    assert [d.name.split("/")[-1] for d in demos] == ["one.npz", "two.csv"]
+    cal = load_calibration(tmp_path / "a" / "calibration.npz")
+    assert list(cal) == ["xy", "zy"] and cal["xy"].shape == (10, 3)
+
+
+def _write_npz(path, **arrays):
+    np.savez(path, **arrays)
+    return path
+
+
+def _bad_npz_files(tmp_path):
+    d = _demo()
+    nan = d.human.copy()
+    nan[12:15, 1] = np.nan
+    back = d.t.copy()
+    back[20] = back[19] - 0.01
+    return {
+        "NaN": _write_npz(tmp_path / "nan.npz", t=d.t, human=nan, robot=d.robot),
+        "non-monotonic": _write_npz(tmp_path / "time.npz", t=back, human=d.human, robot=d.robot),
+        "too short": _write_npz(tmp_path / "short.npz", t=d.t[:3], human=d.human[:3], robot=d.robot[:3]),
+        "rows": _write_npz(tmp_path / "rows.npz", t=d.t, human=d.human[:-1], robot=d.robot),
+        "missing": _write_npz(tmp_path / "foreign.npz", x=np.zeros(3)),
+        "not an npz": tmp_path / "garbage.npz",
+        "pickle": tmp_path / "objects.npz",
+    }
+
+
+def test_every_malformed_npz_names_the_file_and_the_problem(tmp_path):
+    files = _bad_npz_files(tmp_path)
+    files["not an npz"].write_bytes(b"this is not a zip archive")
+    np.savez(files["pickle"], t=np.array([object()] * 5, dtype=object), human=np.zeros((5, 3)))
+    expected = {"NaN": "NaN", "non-monotonic": "increas", "too short": "at least", "rows": "rows",
+                "missing": "missing", "not an npz": "not an npz", "pickle": "never loaded"}
+    for problem, path in files.items():
+        with pytest.raises(ValueError) as exc:
+            load_demo(path)
+        msg = str(exc.value)
+        assert path.name in msg, (problem, msg)
+        assert expected[problem].lower() in msg.lower(), (problem, msg)
+
+
+def test_every_malformed_csv_names_the_file_and_the_problem(tmp_path):
+    good = save_csv(_demo(), tmp_path / "good.csv").read_text().splitlines()
+    header, rows = good[0], good[1:]
+    cases = {
+        "empty.csv": ("", "empty"),
+        "nohead.csv": ("\n".join(["hx,hy,hz"] + rows), "first column must be 't'"),
+        "cols.csv": ("\n".join([header.replace("q7", "q9")] + rows), "robot columns"),
+        "extra.csv": ("\n".join([header + ",speed"] + [r + ",1" for r in rows]), "unknown column"),
+        "short_row.csv": ("\n".join([header] + rows[:5] + [rows[5].rsplit(",", 3)[0]] + rows[6:]), "line 7"),
+        "word.csv": ("\n".join([header] + [rows[0].replace(rows[0].split(",")[1], "abc", 1)] + rows[1:]),
+                     "not a number"),
+        "nan.csv": ("\n".join([header] + [rows[0].replace(rows[0].split(",")[2], "nan", 1)] + rows[1:]), "NaN"),
+        "time.csv": ("\n".join([header] + rows[1:2] + rows[0:1] + rows[2:]), "increas"),
+    }
+    for name, (text, problem) in cases.items():
+        path = tmp_path / name
+        path.write_text(text)
+        with pytest.raises(ValueError) as exc:
+            load_demo(path)
+        msg = str(exc.value)
+        assert name in msg and problem.lower() in msg.lower(), (name, msg)
+
+
+def test_unknown_suffix_and_missing_directory(tmp_path):
+    (tmp_path / "x.txt").write_text("1")
+    with pytest.raises(ValueError, match="x.txt.*unknown file type"):
+        load_demo(tmp_path / "x.txt")
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        load_dir(tmp_path / "nope")
+
+
+def test_load_dir_reports_the_first_bad_file(tmp_path):
+    save_npz(_demo(), tmp_path / "a.npz")
+    (tmp_path / "b.csv").write_text("t,hx\n0,nan\n")
+    with pytest.raises(ValueError, match="b.csv"):
+        load_dir(tmp_path)
