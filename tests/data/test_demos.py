@@ -1,4 +1,7 @@
 """Demonstration files (npz, CSV, directories, calibration): round trips and errors that name the file."""
+import os
+import stat
+
 import numpy as np
 import pytest
 
@@ -61,6 +64,9 @@ def _bad_npz_files(tmp_path):
         "too short": _write_npz(tmp_path / "short.npz", t=d.t[:3], human=d.human[:3], robot=d.robot[:3]),
         "rows": _write_npz(tmp_path / "rows.npz", t=d.t, human=d.human[:-1], robot=d.robot),
         "missing": _write_npz(tmp_path / "foreign.npz", x=np.zeros(3)),
+        "flat human": _write_npz(tmp_path / "flat.npz", t=d.t, human=d.human[:, 0], robot=d.robot),
+        "no robot columns": _write_npz(tmp_path / "nocols.npz", t=d.t, human=d.human, robot=d.robot[:, :0]),
+        "text": _write_npz(tmp_path / "text.npz", t=d.t, human=np.full((len(d.t), 3), "x")),
         "not an npz": tmp_path / "garbage.npz",
         "pickle": tmp_path / "objects.npz",
     }
@@ -71,7 +77,8 @@ def test_every_malformed_npz_names_the_file_and_the_problem(tmp_path):
     files["not an npz"].write_bytes(b"this is not a zip archive")
     np.savez(files["pickle"], t=np.array([object()] * 5, dtype=object), human=np.zeros((5, 3)))
     expected = {"NaN": "NaN", "non-monotonic": "increas", "too short": "at least", "rows": "rows",
-                "missing": "missing", "not an npz": "not an npz", "pickle": "never loaded"}
+                "missing": "missing", "flat human": "2 dimension", "no robot columns": "no columns",
+                "text": "expected numbers", "not an npz": "not an npz", "pickle": "never loaded"}
     for problem, path in files.items():
         with pytest.raises(ValueError) as exc:
             load_demo(path)
@@ -93,6 +100,8 @@ def test_every_malformed_csv_names_the_file_and_the_problem(tmp_path):
                      "not a number"),
         "nan.csv": ("\n".join([header] + [rows[0].replace(rows[0].split(",")[2], "nan", 1)] + rows[1:]), "NaN"),
         "time.csv": ("\n".join([header] + rows[1:2] + rows[0:1] + rows[2:]), "increas"),
+        "short.csv": ("\n".join([header] + rows[:3]), "at least 5"),
+        "nohuman.csv": ("\n".join(["t,q1"] + ["%d,0" % i for i in range(10)]), "no human columns"),
     }
     for name, (text, problem) in cases.items():
         path = tmp_path / name
@@ -116,3 +125,15 @@ def test_load_dir_reports_the_first_bad_file(tmp_path):
     (tmp_path / "b.csv").write_text("t,hx\n0,nan\n")
     with pytest.raises(ValueError, match="b.csv"):
         load_dir(tmp_path)
+
+
+def test_written_files_get_the_usual_permissions_not_owner_only(tmp_path):
+    """Atomic writes go through a temporary file; the result must have the mode open() gives."""
+    mask = os.umask(0o022)
+    try:
+        for path in (save_npz(_demo(), tmp_path / "d.npz"), save_csv(_demo(), tmp_path / "d.csv"),
+                     save_calibration(tmp_path / "calibration.npz", [np.zeros((5, 3)), np.ones((5, 3))])):
+            assert stat.S_IMODE(path.stat().st_mode) == 0o644, path
+    finally:
+        os.umask(mask)
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporary files left

@@ -1,4 +1,6 @@
 """The simulated salad scenario: valid, smooth, reproducible, personal, and hard but learnable."""
+import json
+
 import numpy as np
 import pytest
 
@@ -99,13 +101,23 @@ def test_generator_rejects_bad_arguments():
 def test_generate_and_plot_commands_write_a_dataset_and_a_picture(tmp_path):
     from drake_skills.cli import main
     from drake_skills.data.demos import load_calibration, load_dir
+    from drake_skills.promp.preprocessing import Workspace
 
     out = tmp_path / "salad"
     assert main(["generate", "salad", "--subjects", "2", "--demos", "2", "--out", str(out)]) == 0
     demos = load_dir(out)
     assert len(demos) == 2 * 2 * len(TASKS)
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert len(manifest["files"]) == len(demos) and manifest["tasks"] == list(TASKS)
     for s in ("subject1", "subject2"):
-        assert set(load_calibration(out / s / "calibration.npz")) == {"xy", "zy"}
+        calibration = load_calibration(out / s / "calibration.npz")
+        assert set(calibration) == {"xy", "zy"}
+        # the calibration on disk is enough to normalize that subject's demonstrations into [0, 10]
+        workspace = Workspace.from_calibration(list(calibration.values()))
+        mine = [d for d in demos if d.subject == s]
+        assert len(mine) == 2 * len(TASKS) and all(d.robot.shape[1] == 7 for d in mine)
+        y = np.concatenate([workspace.normalize(d.human, subtract_start=False) for d in mine])
+        assert y.min() >= 0.0 and y.max() <= 10.0, (s, y.min(), y.max())
     assert main(["plot-demos", str(out), "--out", str(tmp_path / "plots")]) == 0
     pngs = list((tmp_path / "plots").glob("*.png"))
     assert pngs and all(p.stat().st_size > 20_000 for p in pngs)

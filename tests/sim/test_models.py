@@ -56,6 +56,7 @@ def test_ik_reaches_every_grasp_pose_within_1cm_and_5_degrees():
     plant = make_iiwa7_plant(cfg.robot_base.transform())
     ctx = plant.CreateDefaultContext()
     lower, upper = IIWA7_JOINT_LIMITS
+    assert set(cfg.tasks) == set(TASKS)
     for task in TASKS:
         q = grasp_configuration(task)
         assert ((q >= lower) & (q <= upper)).all(), task
