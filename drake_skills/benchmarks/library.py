@@ -13,6 +13,7 @@ import time
 
 import numpy as np
 
+from drake_skills.benchmarks._timing import median_ms
 from drake_skills.data.demonstration import Demonstration
 from drake_skills.library.incremental import LibraryConfig, SkillLibrary
 
@@ -50,15 +51,6 @@ def _demo(bank, k: int, rng) -> Demonstration:
     return Demonstration(t=t, human=human + rng.normal(0, 0.01, (T, 3)), robot=robot)
 
 
-def _median_ms(fn, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return 1e3 * float(np.median(times))
-
-
 def _library_with(K: int, rng):
     bank = _skill_bank(K, rng)
     lib = SkillLibrary(LibraryConfig(**CONFIG))
@@ -77,7 +69,7 @@ def run(quick: bool = False) -> list[dict]:
         lib, bank = _library_with(K, rng)
         demos = [_demo(bank, int(rng.integers(K)), rng) for _ in range(repeats)]
         it = iter(demos)
-        ms = _median_ms(lambda: lib.partial_fit(next(it)), repeats)
+        ms = median_ms(lambda: lib.partial_fit(next(it)), repeats, warmup=False)
         rows.append({"name": f"partial_fit, K={K} (found {lib.n_components})", "value": round(ms, 3), "unit": "ms",
                      "goal": "< 2 ms at K=5" if K == 5 else "", "notes": "gating 3x15, stacked 10x15, T=150"})
         if K == 5:
@@ -89,7 +81,7 @@ def run(quick: bool = False) -> list[dict]:
         h = next(it)
         lib5.predict_robot(h)  # recognizes, then conditions (Eq. 12-13)
 
-    ms = _median_ms(rec_pred, repeats)
+    ms = median_ms(rec_pred, repeats, warmup=False)
     rows.append({"name": "recognize + predict_robot, K=5", "value": round(ms, 3), "unit": "ms",
                  "goal": "< 1 ms", "notes": "condition on 100 resampled wrist samples, 100-step robot mean+cov"})
 
@@ -113,7 +105,7 @@ def run(quick: bool = False) -> list[dict]:
                 pf_times.setdefault(N, []).append(dt)
     W = np.asarray(W)
     for N in sizes:
-        em_ms = _median_ms(lambda: batch_em(W[:N], K, random_state=0), 1 if N >= 1000 else 3)
+        em_ms = median_ms(lambda: batch_em(W[:N], K, random_state=0), 1 if N >= 1000 else 3, warmup=False)
         pf_ms = 1e3 * float(np.median(pf_times[N]))
         rows.append({"name": f"batch EM refit vs partial_fit, N={N}", "value": round(em_ms / pf_ms, 1), "unit": "x",
                      "goal": ">= 100x at N=1000" if N == 1000 else "",

@@ -17,21 +17,12 @@ import time
 
 import numpy as np
 
+from drake_skills.benchmarks._timing import median_ms
 from drake_skills.promp.basis import GaussianBasis, phases, ridge_weights
 from drake_skills.promp.interaction import InteractionProMP
 
 T, D, N = 150, 10, 15
 D_H, D_R = 3, 7
-
-
-def _median_ms(fn, repeats: int) -> float:
-    fn()  # warm-up (caches, lazy imports)
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return 1e3 * float(np.median(times))
 
 
 def _row(name, ours_ms, ref_ms, notes):
@@ -50,14 +41,14 @@ def run(quick: bool = False) -> list[dict]:
     z = phases(T)
     Y = np.cumsum(rng.standard_normal((T, D)), axis=0) * 0.1 + np.sin(np.pi * z)[:, None]
     basis = GaussianBasis(N)
-    ours = _median_ms(lambda: ridge_weights(Y, basis), repeats)
+    ours = median_ms(lambda: ridge_weights(Y, basis), repeats)
     mp = ProMP(D, N)
-    ref = _median_ms(lambda: mp.weights(z.copy(), Y), max(5, repeats // 10))
+    ref = median_ms(lambda: mp.weights(z.copy(), Y), max(5, repeats // 10))
     rows.append(_row("weights of one demo (T=150, D=10, N=15)", ours, ref,
                      "ours: cached (Phi^T Phi + rI)^-1 Phi^T, one N x N system for all dims; "
                      "reference: pinv of the (D N)^2 block system"))
 
-    ours_z = _median_ms(lambda: ridge_weights(Y, basis, z=z), repeats)
+    ours_z = median_ms(lambda: ridge_weights(Y, basis, z=z), repeats)
     rows.append(_row("weights of one demo, phases given (no cache)", ours_z, ref,
                      "ours: Phi computed and an N x N system solved on every call"))
 
@@ -68,7 +59,7 @@ def run(quick: bool = False) -> list[dict]:
     A = rng.standard_normal((n, n))
     p.fit_weights(rng.standard_normal((3 * n, n)) @ A * 0.1 + rng.standard_normal(n))
     y_obs = Y[:, :D_H]
-    ours = _median_ms(lambda: p.condition(y_obs, z), repeats)
+    ours = median_ms(lambda: p.condition(y_obs, z), repeats)
 
     # movement_primitives: one ProMP over all 10 dims (same weight layout), one call per point
     mp = ProMP(D, N).from_weight_distribution(p.mean_.copy(), p.cov_.copy())
@@ -81,7 +72,7 @@ def run(quick: bool = False) -> list[dict]:
         for i in range(n_calls):
             q = q.condition_position(y_full[i], y_cov=y_cov, t=z[i], t_max=1.0)
 
-    per_point = _median_ms(chained, 3 if quick else 10) / n_calls
+    per_point = median_ms(chained, 3 if quick else 10) / n_calls
     rows.append(_row("condition on 150 human samples (3+7 dims, 15 basis)", ours, per_point * T,
                      f"reference: chained condition_position, {n_calls} calls timed, "
                      f"{per_point:.3f} ms per point x 150"))
