@@ -17,43 +17,19 @@ from __future__ import annotations
 
 import csv
 import io
-import os
 import re
-import tempfile
 import zipfile
 from pathlib import Path
 
 import numpy as np
 
 from drake_skills._checks import as_finite_array
+from drake_skills._io import atomic_write
 from drake_skills.data.demonstration import Demonstration
 
 #: Suffixes of demonstration files.
 DEMO_SUFFIXES = (".npz", ".csv")
 _HUMAN_XYZ = ("hx", "hy", "hz")
-
-
-def _umask() -> int:
-    """The process umask (reading it means setting it, so set it straight back)."""
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-def _atomic_write(path: Path, write) -> None:
-    """Write through ``write(file)`` to a temporary file, then rename it onto ``path``."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        # mkstemp creates the file owner-only (0600); give it the mode open() would (0666 & ~umask)
-        os.fchmod(fd, 0o666 & ~_umask())
-        with os.fdopen(fd, "wb") as f:
-            write(f)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def _read_npz(path: Path, where: str) -> dict[str, np.ndarray]:
@@ -92,7 +68,7 @@ def save_npz(demo: Demonstration, path: str | Path) -> Path:
         value = getattr(demo, label)
         if value is not None:
             arrays[label] = np.array(value, dtype=str)
-    _atomic_write(path, lambda f: np.savez(f, **arrays))
+    atomic_write(path, lambda f: np.savez(f, **arrays))
     return path
 
 
@@ -154,7 +130,7 @@ def save_csv(demo: Demonstration, path: str | Path) -> Path:
     extra = [getattr(demo, k) for k in labels]
     for row in data:
         w.writerow([repr(float(x)) for x in row] + extra)
-    _atomic_write(path, lambda f: f.write(buf.getvalue().encode()))
+    atomic_write(path, lambda f: f.write(buf.getvalue().encode()))
     return path
 
 
@@ -279,7 +255,7 @@ def save_calibration(path: str | Path, motions) -> Path:
         raise ValueError(f"calibration '{path}': no motions to save")
     arrays = {k: as_finite_array(v, f"calibration motion '{k}'", ndim=2, min_rows=2, where=f"calibration '{path}'")
               for k, v in motions.items()}
-    _atomic_write(path, lambda f: np.savez(f, **arrays))
+    atomic_write(path, lambda f: np.savez(f, **arrays))
     return path
 
 

@@ -17,12 +17,12 @@ error.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 import zipfile
 from pathlib import Path
 
 import numpy as np
+
+from drake_skills._io import atomic_write
 
 FORMAT = "drake-skills library"
 SCHEMA_VERSION = 1
@@ -52,18 +52,8 @@ def save_library(lib, path) -> Path:
     d = comps[0].mean.shape[0] if comps else 0
     means = np.stack([c.mean for c in comps]) if comps else np.zeros((0, d))
     covs = np.stack([c.cov for c in comps]) if comps else np.zeros((0, d, d))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez(f, metadata=np.array(json.dumps(meta)), means=means, covs=covs)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    atomic_write(path, lambda f: np.savez(f, metadata=np.array(json.dumps(meta)), means=means, covs=covs),
+                 fsync=True)
     return path
 
 

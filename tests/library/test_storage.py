@@ -47,6 +47,27 @@ def test_save_is_atomic_and_leaves_no_temp_files(lib, tmp_path):
     assert sorted(x.name for x in tmp_path.iterdir()) == ["lib.npz"]
 
 
+def test_save_gives_the_usual_file_mode_and_a_failed_save_keeps_the_old_file(lib, tmp_path, monkeypatch):
+    import os
+
+    p = tmp_path / "lib.npz"
+    lib.save(p)
+    mask = os.umask(0o022)
+    os.umask(mask)
+    assert (p.stat().st_mode & 0o777) == (0o666 & ~mask)  # not mkstemp's owner-only 0600
+    before = p.read_bytes()
+
+    def broken_savez(f, **arrays):
+        f.write(b"partial")
+        raise OSError("disk full")
+
+    monkeypatch.setattr(np, "savez", broken_savez)
+    with pytest.raises(OSError, match="disk full"):
+        lib.save(p)
+    assert p.read_bytes() == before
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["lib.npz"]
+
+
 def _rewrite(src, dst, **changes):
     with np.load(src, allow_pickle=False) as z:
         arrays = {k: z[k] for k in z.files}
