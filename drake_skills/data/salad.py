@@ -398,6 +398,8 @@ class _RobotIK:
         from pydrake.multibody.inverse_kinematics import InverseKinematics
         from pydrake.solvers import Solve
 
+        from drake_skills.sim.models import IIWA7_JOINT_LIMITS
+
         ik = InverseKinematics(self.plant)
         W = self.plant.world_frame()
         ik.AddPositionConstraint(self.flange, np.zeros(3), W, p_WE - pos_tol, p_WE + pos_tol)
@@ -406,6 +408,11 @@ class _RobotIK:
         else:
             ik.AddAngleBetweenVectorsConstraint(W, axis_W, self.flange, np.array([0.0, 0.0, 1.0]),
                                                 0.0, theta_bound)
+        # keep 2 degrees off the joint limits (the SDF rounds them to 6 decimals, and a
+        # real controller needs room to track)
+        lower, upper = IIWA7_JOINT_LIMITS
+        margin = np.deg2rad(2.0)
+        ik.prog().AddBoundingBoxConstraint(lower + margin, upper - margin, ik.q())
         # stay close to the seed: no jumps between IK branches
         ik.prog().AddQuadraticErrorCost(np.eye(7), seed, ik.q())
         result = Solve(ik.prog(), seed)
