@@ -121,3 +121,13 @@ def test_generate_and_plot_commands_write_a_dataset_and_a_picture(tmp_path):
     assert main(["plot-demos", str(out), "--out", str(tmp_path / "plots")]) == 0
     pngs = list((tmp_path / "plots").glob("*.png"))
     assert pngs and all(p.stat().st_size > 20_000 for p in pngs)
+
+
+def test_handover_ik_stays_off_the_joint_limits():
+    """Regression: seed 1, subject 7, bowl 11 once put joint 1 on its limit and aborted generation."""
+    from drake_skills.data.salad import make_demonstration
+
+    lower, upper = IIWA7_JOINT_LIMITS
+    d = make_demonstration(make_subject(7, seed=1), "bowl", 11, seed=1)
+    margin = np.deg2rad(2.0) - 1e-6
+    assert (d.robot >= lower + margin).all() and (d.robot <= upper - margin).all()
