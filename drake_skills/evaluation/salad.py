@@ -43,7 +43,9 @@ not depend on the number of workers):
    learned from ``table3_demos`` random demonstrations of that task of every subject,
    in a random order, once with each subject's personal workspace (Eq. 14, "with") and
    once with one shared workspace, the bounding box of all subjects' calibrations
-   ("without"). Both keep the start-position offset.
+   ("without"); both subtract the start position (Eq. 14). A third library also keeps
+   the start position (shared workspace, ``subtract_start=False``): the paper's
+   "without transformation" of Fig. 8.
 5. Leave one subject out (Fig. 9). Per held-out subject and trial: a library learned
    from ``transfer_train`` random demonstrations per task of every other subject in a
    random order, tested on ``transfer_test`` random demonstrations per task of the
@@ -75,6 +77,9 @@ CORRECT, WRONG, UNKNOWN = 0, 1, 2
 #: Bins of Table 3 (components per task): <= 1, 2, 3, 4, 5, >= 6.
 TASK_COUNT_BINS = ((0, 1), 2, 3, 4, 5, (6, None))
 TASK_COUNT_LABELS = ("<=1", "2", "3", "4", "5", ">=6")
+#: Libraries of Table 3: key in the trial's result -> row label.
+TABLE3_VARIANTS = {"with": "personal workspace", "without": "shared workspace",
+                   "raw": "shared workspace, no start offset"}
 #: Files the generated data depends on (their hash keys the cache).
 _DATA_SOURCES = ("models/salad/scene.yaml", "models/iiwa7/iiwa7.sdf", "drake_skills/data/salad.py",
                  "drake_skills/sim/models.py")
@@ -488,8 +493,14 @@ def kl_trial(ctx: dict, index: int) -> dict:
 
 
 def task_components_trial(ctx: dict, item: tuple[str, int]) -> dict:
-    """Components of a one-task library across subjects, with and without personal workspaces (Table 3)."""
-    from drake_skills import SkillLibrary
+    """Components of a one-task library across subjects (Table 3).
+
+    The same demonstrations in the same order go into three libraries: with each
+    subject's personal workspace (``"with"``), with the shared workspace
+    (``"without"``), and with the shared workspace and no start-position offset
+    (``"raw"``, the paper's "without transformation" of Fig. 8).
+    """
+    from drake_skills import LibraryConfig, SkillLibrary
 
     s: SaladSettings = ctx["settings"]
     task, order = item
@@ -500,11 +511,13 @@ def task_components_trial(ctx: dict, item: tuple[str, int]) -> dict:
         for j in rng.permutation(len(pool))[:s.table3_per_task]:
             demos.append(pool[j])
             personal.append(ws)
-    with_ws, without_ws = SkillLibrary(), SkillLibrary()
+    with_ws, without_ws, raw = SkillLibrary(), SkillLibrary(), SkillLibrary(LibraryConfig(subtract_start=False))
     for j in rng.permutation(len(demos)):
         with_ws.partial_fit(demos[j], workspace=personal[j])
         without_ws.partial_fit(demos[j], workspace=ctx["shared"])
-    return {"task": task, "with": with_ws.n_components, "without": without_ws.n_components}
+        raw.partial_fit(demos[j], workspace=ctx["shared"])
+    return {"task": task, "with": with_ws.n_components, "without": without_ws.n_components,
+            "raw": raw.n_components}
 
 
 def transfer_trial(ctx: dict, item: tuple[int, int]) -> dict:
@@ -681,21 +694,22 @@ def _kl_table(s: SaladSettings, kl: list[dict]):
 def _task_components_tables(s: SaladSettings, tc: list[dict]):
     rows, matrix, summary = [], [], {}
     for task in s.tasks:
-        w = [r["with"] for r in tc if r["task"] == task]
-        wo = [r["without"] for r in tc if r["task"] == task]
-        dw, dwo = count_distribution(w, TASK_COUNT_BINS), count_distribution(wo, TASK_COUNT_BINS)
-        rows.append([task, "personal workspace", *dw, float(np.mean(w))])
-        rows.append([task, "shared workspace", *dwo, float(np.mean(wo))])
-        matrix.append([task, *[f"{a:.2f} ({b:.2f})" for a, b in zip(dw, dwo)]])
-        summary[task] = {"with": float(np.mean(w)), "without": float(np.mean(wo))}
+        counts = {v: [r[v] for r in tc if r["task"] == task] for v in TABLE3_VARIANTS}
+        dist = {v: count_distribution(c, TASK_COUNT_BINS) for v, c in counts.items()}
+        for v, label in TABLE3_VARIANTS.items():
+            rows.append([task, label, *dist[v], float(np.mean(counts[v]))])
+        matrix.append([task, *[f"{a:.2f} ({b:.2f})" for a, b in zip(dist["with"], dist["without"])]])
+        summary[task] = {v: float(np.mean(c)) for v, c in counts.items()}
     how = (f"one library per task from {s.table3_per_task} random demonstrations of that task of each of the "
            f"{s.n_subjects} subjects, in a random order, {s.trials} orders")
     long = Table(["task", "normalization", *TASK_COUNT_LABELS, "mean"], rows,
                  caption=(f"Components per task across subjects (Table 3): {how}; 'personal workspace' normalizes "
                           f"each demonstration with its subject's calibration (Eq. 14), 'shared workspace' with "
-                          f"the bounding box of all calibrations; both subtract the start position."))
+                          f"the bounding box of all calibrations, both subtracting the start position; the third "
+                          f"row also keeps the start position (LibraryConfig(subtract_start=False)), the paper's "
+                          f"'without transformation' of Fig. 8."))
     mat = Table(["task", *TASK_COUNT_LABELS], matrix,
-                caption=f"Table 3 in the paper's layout: with (without) personal normalization; {how}.")
+                caption=f"Table 3 in the paper's layout: personal (shared) workspace; {how}.")
     return long, mat, summary
 
 
@@ -780,9 +794,10 @@ def _fig_task_components(s: SaladSettings, tc: list[dict]):
     fig, axes = plt.subplots(1, len(s.tasks), figsize=(2.4 * len(s.tasks), 2.8), sharey=True, squeeze=False)
     x = np.arange(len(TASK_COUNT_BINS))
     for ax, task in zip(axes[0], s.tasks):
-        for off, variant, c, lab in ((-0.2, "with", "tab:green", "personal"), (0.2, "without", "0.5", "shared")):
+        for off, variant, c, lab in ((-0.27, "with", "tab:green", "personal"), (0.0, "without", "0.5", "shared"),
+                                     (0.27, "raw", "0.8", "shared, start kept")):
             d = count_distribution([r[variant] for r in tc if r["task"] == task], TASK_COUNT_BINS)
-            ax.bar(x + off, d, 0.4, color=c, label=lab)
+            ax.bar(x + off, d, 0.27, color=c, label=lab)
         ax.set_xticks(x)
         ax.set_xticklabels(TASK_COUNT_LABELS, fontsize=7)
         ax.set_title(task, fontsize=9)

@@ -100,7 +100,7 @@ def test_component_distributions_sum_to_one(reports):
         assert abs(d.sum() - 1) < 1e-9
         assert r[1] >= 1
     t = rep.tables["components_per_task"]
-    assert len(t.rows) == 2 * len(s.tasks)
+    assert len(t.rows) == 3 * len(s.tasks)
     for r in t.rows:
         d = np.array(r[2:-1], float)
         assert ((d >= 0) & (d <= 1)).all() and abs(d.sum() - 1) < 1e-9
