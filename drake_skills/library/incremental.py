@@ -741,10 +741,11 @@ class SkillLibrary:
         c = self._state(component)
         cfg = self.config
         Phi_o = cfg.basis_human.phi(np.linspace(0.0, float(observed_fraction), y.shape[0]))
-        mean, cov = condition_on_observations(c.mean, c.cov, Phi_o, y, cfg.observation_noise)  # Eq. (13)
         h, n = self.n_human, n_steps or cfg.n_samples
-        mean_r = cfg.basis_robot.phi_uniform(n) @ mean[h:].reshape(self.dim_robot_, -1).T
-        cov_r = trajectory_covariance(cov[h:, h:], cfg.basis_robot, self.dim_robot_, n_steps=n)
+        # Eq. (13), keeping only the robot block of the posterior
+        mean_w, cov_w = condition_on_observations(c.mean, c.cov, Phi_o, y, cfg.observation_noise, start=h)
+        mean_r = cfg.basis_robot.phi_uniform(n) @ mean_w.reshape(self.dim_robot_, -1).T
+        cov_r = trajectory_covariance(cov_w, cfg.basis_robot, self.dim_robot_, n_steps=n)
         return mean_r, cov_r
 
     # ---------------------------------------------------------------- storage

@@ -170,8 +170,10 @@ def trajectory_covariance(Sigma, basis: GaussianBasis, n_dims: int, z=None, n_st
     N = basis.n_basis
     Sigma = as_finite_array(Sigma, "covariance", shape=(n_dims * N, n_dims * N))
     Phi = basis.phi_uniform(n_steps) if z is None else basis.phi(z)
-    # cov[t, d, e] = sum_ij Phi[t, i] S[d, i, e, j] Phi[t, j], as one matmul and a reduction
-    S = Sigma.reshape(n_dims, N, n_dims, N).transpose(1, 0, 2, 3).reshape(N, -1)  # (i, d*e*j)
-    tmp = (Phi @ S).reshape(-1, n_dims, n_dims, N)  # (t, d, e, j)
-    cov = np.einsum("tdej,tj->tde", tmp, Phi)
+    # cov[t, d, e] = sum_ij Phi[t, i] S[d, i, e, j] Phi[t, j]: one small matmul per
+    # dimension d, then a reduction over j. One big (T x N) @ (N x D*D*N) product would be
+    # the same flops, but it crosses OpenBLAS's threading threshold and on a 2-core
+    # machine costs 3-5x more in thread start-up than it saves (measured: 0.29 vs 0.05 ms).
+    tmp = np.matmul(Phi[None], Sigma.reshape(n_dims, N, n_dims * N))  # (d, t, e*j)
+    cov = np.einsum("dtej,tj->tde", tmp.reshape(n_dims, -1, n_dims, N), Phi)
     return 0.5 * (cov + cov.transpose(0, 2, 1))

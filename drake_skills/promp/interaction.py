@@ -44,7 +44,7 @@ def _observation_terms(mean_h, cov_hh, Phi_o, y_obs, noise_var):
     return G, u, r, A
 
 
-def condition_on_observations(mean, cov, Phi_o, y_obs, noise_var: float):
+def condition_on_observations(mean, cov, Phi_o, y_obs, noise_var: float, *, start: int = 0):
     """Condition ``N(mean, cov)`` over ``[w_h; ...]`` on observed human samples (Eq. 13).
 
     Parameters
@@ -58,17 +58,20 @@ def condition_on_observations(mean, cov, Phi_o, y_obs, noise_var: float):
         Observed human positions.
     noise_var : float
         Observation noise variance sigma_o (Sigma_o = sigma_o I).
+    start : int
+        Return only the posterior of the weights ``start:`` (e.g. the robot's,
+        ``start = D_h * N_h``), which skips the rest of the covariance update.
 
     Returns
     -------
-    mean_new : array, shape (d,)
-    cov_new : array, shape (d, d)
+    mean_new : array, shape (d - start,)
+    cov_new : array, shape (d - start, d - start)
     """
     h = y_obs.shape[1] * Phi_o.shape[1]
     G, u, _, A = _observation_terms(mean[:h], cov[:h, :h], Phi_o, y_obs, noise_var)
-    C = cov[:, :h]
-    mean_new = mean + C @ np.linalg.solve(A, u)
-    cov_new = cov - C @ np.linalg.solve(A, G) @ C.T
+    C = cov[start:, :h]
+    mean_new = mean[start:] + C @ np.linalg.solve(A, u)
+    cov_new = cov[start:, start:] - (C @ np.linalg.solve(A, G)) @ C.T
     return mean_new, symmetrize(cov_new)
 
 

@@ -39,6 +39,21 @@ def test_condition_equals_closed_form_gaussian_conditional():
     np.testing.assert_allclose(post.cov_, cov_ref, rtol=1e-7, atol=1e-8)
 
 
+def test_condition_robot_block_only_equals_block_of_full_posterior():
+    from drake_skills.promp.interaction import condition_on_observations
+
+    rng = np.random.default_rng(3)
+    p = _random_model(rng)
+    z = np.linspace(0.0, 0.6, 9)
+    y = rng.standard_normal((9, 3))
+    Phi_o = p.basis_human.phi(z)
+    mean, cov = condition_on_observations(p.mean_, p.cov_, Phi_o, y, 0.2)
+    h = p.n_human
+    mean_r, cov_r = condition_on_observations(p.mean_, p.cov_, Phi_o, y, 0.2, start=h)
+    np.testing.assert_allclose(mean_r, mean[h:], rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(cov_r, cov[h:, h:], rtol=1e-10, atol=1e-12)
+
+
 def test_conditioned_mean_passes_through_observations_as_noise_vanishes():
     rng = np.random.default_rng(1)
     p = _random_model(rng)
