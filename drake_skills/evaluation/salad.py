@@ -281,7 +281,7 @@ def shared_workspace(subjects: Sequence, z_factor: float = 0.9):
     return Workspace.from_calibration([m for s in subjects for m in s.calibration], z_factor=z_factor)
 
 
-def observed_prefix(human: np.ndarray, fraction: float, workspace=None) -> np.ndarray:
+def observed_prefix(human: np.ndarray, fraction: float, workspace=None, tolerance: float = 0.0) -> np.ndarray:
     """The first ``fraction`` of a motion's path length (measured in the normalized workspace).
 
     The cut falls between two samples; the last row is interpolated there, so the
@@ -293,6 +293,11 @@ def observed_prefix(human: np.ndarray, fraction: float, workspace=None) -> np.nd
     human : array, shape (T, D)
     fraction : float in (0, 1]
     workspace : Workspace, optional
+    tolerance : float
+        The library's ``resample_tolerance`` (normalized units): path length is
+        measured through the same vertices the library uses
+        (:func:`~drake_skills.promp.preprocessing.path_vertices`), so the prefix
+        is ``fraction`` of the length the library sees.
 
     Returns
     -------
@@ -304,7 +309,13 @@ def observed_prefix(human: np.ndarray, fraction: float, workspace=None) -> np.nd
         raise ValueError(f"fraction must be in (0, 1], got {fraction!r}")
     if f == 1.0:
         return human
+    from drake_skills.promp.preprocessing import vertex_indices
+
     y = workspace.normalize(human, subtract_start=False) if workspace is not None else human
+    idx = vertex_indices(y, tolerance)
+    human, y = human[idx], y[idx]
+    if human.shape[0] < 2:
+        raise ValueError("the motion does not move beyond the tolerance: no prefix to observe")
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(y, axis=0), axis=1))])
     target = f * s[-1]
     i = int(np.searchsorted(s, target, side="right"))  # s[i-1] <= target < s[i]
@@ -397,7 +408,7 @@ def response_errors(lab: LabeledLibrary, demo, workspace, fractions: Sequence[fl
     p_demo = flange_position(demo.robot[-1])
     targets = {}
     for i, f in enumerate(fractions):
-        human = observed_prefix(demo.human, f, workspace)
+        human = observed_prefix(demo.human, f, workspace, lib.config.resample_tolerance)
         outcome, comp = lab.classify(human, demo.task, workspace, f)
         out["outcome"][i] = outcome
         if comp is None:

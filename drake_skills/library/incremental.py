@@ -127,6 +127,19 @@ class LibraryConfig:
     ridge: float = 1e-6
     #: Subtract the normalized start position (Eq. 14).
     subtract_start: bool = True
+    #: Arc length counts a human sample only once it lies this far (normalized
+    #: units; 0.1 = 1 % of the workspace, ~1-2 cm for a seated person) from the
+    #: last counted one (``promp.preprocessing.path_vertices``). 0 counts every
+    #: sample that moves, as the paper's equidistant spatial interpolation.
+    #: With a noisy tracker, 0 lets the noise add path length: on the simulated
+    #: salad data (0.5 mm noise at 150 Hz) it doubles the length, the phase
+    #: becomes partly time-like and the hold at the end of a reach takes ~20 %
+    #: of it. 0.1 removes that, but then board, tomato and bowl come within
+    #: 1.2-1.5 RMS units of each other and the default ``gating_floor`` (1.0)
+    #: merges them; ``gating_floor=0.6, sigma_init_human=0.4`` separates the
+    #: salad tasks (99 % correct) but splits a LASA letter in ~20 % of orders.
+    #: The default stays 0 until one setting serves both (see RESULTS.md).
+    resample_tolerance: float = 0.0
     #: Default workspace for human data (None: data is already normalized);
     #: a per-call ``workspace`` argument overrides it (one per subject).
     workspace: Workspace | None = None
@@ -187,7 +200,7 @@ class LibraryConfig:
             v = getattr(self, name)
             if not np.isfinite(v) or v <= 0:
                 raise ValueError(f"LibraryConfig.{name} must be positive, got {v!r}")
-        for name in ("ridge", "consolidation", "delete_min_support"):
+        for name in ("ridge", "consolidation", "delete_min_support", "resample_tolerance"):
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0:
                 raise ValueError(f"LibraryConfig.{name} must be >= 0, got {v!r}")
@@ -459,7 +472,7 @@ class SkillLibrary:
             raise ValueError(f"observed_fraction must be in (0, 1], got {observed_fraction!r}")
         n = cfg.n_samples if f == 1 else max(2, int(round(f * cfg.n_samples)))
         try:
-            return resample_by_arc_length(human, n)
+            return resample_by_arc_length(human, n, cfg.resample_tolerance)
         except ValueError as exc:
             raise ValueError(f"{where + ': ' if where else ''}human {exc}") from None
 

@@ -1,9 +1,10 @@
 """Save and load a SkillLibrary: one ``.npz`` file, no pickle.
 
-Layout (schema version 1):
+Layout (schema version 2; version 1 lacked ``config.resample_tolerance``,
+which reads as 0, the arc length of version 1):
 
 * ``metadata``: a 0-d unicode array holding JSON: ``{"format": "drake-skills
-  library", "schema_version": 1, "config": {...}, "dim_human": ...,
+  library", "schema_version": 2, "config": {...}, "dim_human": ...,
   "dim_robot": ..., "next_id": ..., "n_seen": ..., "components": [{"id", "age",
   "support", "duration"}, ...], "history": [...]}``;
 * ``means``: (K, d) and ``covs``: (K, d, d), in the order of ``components``.
@@ -25,7 +26,7 @@ import numpy as np
 from drake_skills._io import atomic_write
 
 FORMAT = "drake-skills library"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 
 
 def save_library(lib, path) -> Path:
@@ -106,7 +107,10 @@ def load_library(path):
         raise ValueError(f"{where} has schema version {version}, newer than this drake-skills "
                          f"supports ({SCHEMA_VERSION}): upgrade drake-skills")
     try:
-        config = LibraryConfig.from_dict(meta["config"])
+        cfg_meta = dict(meta["config"])
+        if version < 2:  # written before the arc length ignored noise below a tolerance
+            cfg_meta.setdefault("resample_tolerance", 0.0)
+        config = LibraryConfig.from_dict(cfg_meta)
         comps_meta = meta["components"]
         dim_h, dim_r = meta["dim_human"], meta["dim_robot"]
         next_id, n_seen, history = int(meta["next_id"]), int(meta["n_seen"]), list(meta["history"])

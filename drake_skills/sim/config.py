@@ -85,8 +85,8 @@ class SimConfig:
     log_period: float = 1.0 / 32.0
     # number of trials of the demo
     trials: int = 20
-    # index of the simulated subject
-    subject: int = 0
+    # 1-based index of the simulated subject (drake_skills.data.salad)
+    subject: int = 1
     # demonstrations generated per task for the subject (the trial pool)
     demos_per_task: int = 15
     # shrink factor of the calibrated workspace along z (Sec. 4.2.2)
@@ -98,6 +98,8 @@ class SimConfig:
                 raise ValueError(f"SimConfig.{name} must be positive, got {getattr(self, name)!r}")
         if self.unknown_hold_time < 0:
             raise ValueError(f"SimConfig.unknown_hold_time must be >= 0, got {self.unknown_hold_time!r}")
+        if isinstance(self.subject, bool) or int(self.subject) != self.subject or self.subject < 1:
+            raise ValueError(f"SimConfig.subject is a 1-based index, got {self.subject!r}")
         if self.trials < 1 or self.n_steps < 2 or self.demos_per_task < 1:
             raise ValueError("SimConfig: trials and demos_per_task must be >= 1 and n_steps >= 2")
 

@@ -119,3 +119,21 @@ def test_empty_library_round_trips(tmp_path):
     p = tmp_path / "empty.npz"
     SkillLibrary().save(p)
     assert SkillLibrary.load(p).n_components == 0
+
+
+def test_version_1_file_keeps_its_raw_arc_length(lib, tmp_path):
+    """Schema 1 had no resample_tolerance: such a file loads with 0 (its behaviour); a schema 2 file keeps its value."""
+    good = tmp_path / "good.npz"
+    lib.save(good)
+    with np.load(good, allow_pickle=False) as z:
+        meta = json.loads(str(z["metadata"]))
+    cfg = {k: v for k, v in meta["config"].items() if k != "resample_tolerance"}
+    _rewrite(good, tmp_path / "v1.npz", meta={"schema_version": 1, "config": cfg})
+    old = SkillLibrary.load(tmp_path / "v1.npz")
+    assert old.config.resample_tolerance == 0.0
+    tolerant = SkillLibrary(LibraryConfig(resample_tolerance=0.1))
+    rng = np.random.default_rng(2)
+    for i in range(3):
+        tolerant.partial_fit(synthetic_demo(i, rng))
+    tolerant.save(tmp_path / "v2.npz")
+    assert SkillLibrary.load(tmp_path / "v2.npz").config.resample_tolerance == 0.1
