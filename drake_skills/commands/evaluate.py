@@ -14,7 +14,8 @@ def register(sub) -> None:
     p = sub.add_parser("eval", help="run the paper's experiments (letters, salad) and write tables and plots",
                        description="Reproduce the experiments of Sec. 4: `eval letters` (Sec. 4.1, Figs. 3-4) and "
                                    "`eval salad` (Sec. 4.2, Tables 1-3, Figs. 7c and 9, and the robot response "
-                                   "error vs the observed fraction). Writes .md and .csv tables, .png plots and "
+                                   "error vs the observed fraction), and `eval sensitivity` (the defaults against alternative "
+                                   "settings on both data sets). Writes .md and .csv tables, .png plots and "
                                    "summary.json under --out.")
     esub = p.add_subparsers(dest="experiment", metavar="EXPERIMENT")
     esub.required = True
@@ -38,6 +39,12 @@ def register(sub) -> None:
     q.add_argument("--demos", type=int, default=None, help="demonstrations per task and subject (default 15)")
     q.add_argument("--data-seed", type=int, default=0, help="seed of the simulated data set (default 0)")
     q.set_defaults(func=run_salad)
+
+    q = esub.add_parser("sensitivity", help="how much room the defaults have: arc-length tolerance and gating "
+                                            "floor on letters and salad at once")
+    common(q, "sensitivity", 100)
+    q.add_argument("--splits", type=int, default=None, help="salad train/test splits per subject (default 10)")
+    q.set_defaults(func=run_sensitivity)
 
 
 def _finish(rep, out: Path, t0: float) -> int:
@@ -81,4 +88,21 @@ def run_salad(args: argparse.Namespace) -> int:
     s.data_seed = args.data_seed
     rep = evaluate_salad(s, workers=args.workers, progress=not args.no_progress, cache_dir=args.out / "cache")
     rep.summary["command"] = " ".join(["drake-skills", "eval", "salad"] + sys.argv[3:])
+    return _finish(rep, args.out, t0)
+
+
+def run_sensitivity(args: argparse.Namespace) -> int:
+    from drake_skills.evaluation.sensitivity import SensitivitySettings, evaluate_sensitivity
+
+    t0 = time.time()
+    s = SensitivitySettings.quick(seed=args.seed) if args.quick else SensitivitySettings(seed=args.seed)
+    if args.trials is not None:
+        s.letter_orders = args.trials
+    if args.splits is not None:
+        s.salad_splits = args.splits
+    if s.letter_orders < 1 or s.salad_splits < 1:
+        raise SystemExit("drake-skills eval sensitivity: --trials and --splits must be >= 1")
+    rep = evaluate_sensitivity(s, workers=args.workers, progress=not args.no_progress,
+                               cache_dir=args.out / "cache")
+    rep.summary["command"] = " ".join(["drake-skills", "eval", "sensitivity"] + sys.argv[3:])
     return _finish(rep, args.out, t0)
