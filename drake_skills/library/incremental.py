@@ -132,9 +132,9 @@ class LibraryConfig:
     #: last counted one (``promp.preprocessing.path_vertices``). 0 counts every
     #: sample that moves, as the paper's equidistant spatial interpolation.
     #: With a noisy tracker, 0 lets the noise add path length: on the simulated
-    #: salad data (0.5 mm noise at 150 Hz) it doubles the length, the phase
-    #: becomes partly time-like and the hold at the end of a reach takes ~20 %
-    #: of it. 0.1 removes that, but then board, tomato and bowl come within
+    #: salad data (0.5 mm noise at 150 Hz) it adds 20-40 % to the length, the
+    #: phase becomes partly time-like and the hold at the end of a reach takes
+    #: ~20 % of it. 0.1 removes that, but then board, tomato and bowl come within
     #: 1.2-1.5 RMS units of each other and the default ``gating_floor`` (1.0)
     #: merges them; ``gating_floor=0.6, sigma_init_human=0.4`` separates the
     #: salad tasks (99 % correct) but splits a LASA letter in ~20 % of orders.
