@@ -263,3 +263,28 @@ def use_agg() -> None:
     import matplotlib
 
     matplotlib.use("Agg", force=True)
+
+
+def fig_kl_vs_samples(ks, inc, em, *, xlabel: str, title: str, std_bars: bool = False):
+    """KL(labeled ML || model) against samples per class: mean and 10-90 % band per model.
+
+    ``inc`` and ``em`` are (trials, len(ks)) arrays; ``std_bars`` adds +-1 std error bars.
+    """
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5.5, 3.8))
+    for name, a, c in (("incremental (ours)", inc, "tab:green"), ("batch EM (true K)", em, "tab:blue")):
+        mean = a.mean(axis=0)
+        lo, hi = np.percentile(a, 10, axis=0), np.percentile(a, 90, axis=0)
+        ax.plot(ks, mean, "o-", color=c, label=f"{name}: mean")
+        ax.fill_between(ks, lo, hi, color=c, alpha=0.2, label=f"{name}: 10-90 %")
+        if std_bars:
+            ax.errorbar(ks, mean, yerr=a.std(axis=0), color=c, fmt="none", capsize=3)
+    ax.set_yscale("symlog", linthresh=1.0)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("KL(labeled ML || model), nats")
+    ax.set_title(title)
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return fig

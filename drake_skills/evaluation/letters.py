@@ -24,7 +24,8 @@ from typing import Sequence
 
 import numpy as np
 
-from drake_skills.evaluation.common import EvalReport, Table, count_distribution, run_trials, trial_rng
+from drake_skills.evaluation.common import (EvalReport, Table, count_distribution, fig_kl_vs_samples, run_trials,
+                                           trial_rng)
 
 STREAM_LETTERS = 1
 
@@ -140,26 +141,6 @@ def library_growth(ctx: dict, order_seed: int) -> dict:
             "final": lib}
 
 
-def _fig_kl(ks, inc, em):
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(5.5, 3.8))
-    for name, a, c in (("incremental (ours)", inc, "tab:green"), ("batch EM (true K)", em, "tab:blue")):
-        mean, sd = a.mean(axis=0), a.std(axis=0)
-        lo, hi = np.percentile(a, 10, axis=0), np.percentile(a, 90, axis=0)
-        ax.plot(ks, mean, "o-", color=c, label=f"{name}: mean")
-        ax.fill_between(ks, lo, hi, color=c, alpha=0.2, label=f"{name}: 10-90 %")
-        ax.errorbar(ks, mean, yerr=sd, color=c, fmt="none", capsize=3)
-    ax.set_yscale("symlog", linthresh=1.0)
-    ax.set_xlabel("samples per class")
-    ax.set_ylabel("KL(labeled ML || model), nats")
-    ax.set_title("Letters: KL to the labeled baseline (Fig. 4b)")
-    ax.legend(fontsize=7)
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    return fig
-
-
 def _fig_growth(growth: dict):
     import matplotlib.pyplot as plt
 
@@ -263,6 +244,8 @@ def evaluate_letters(settings: LettersSettings | None = None, *, workers: int = 
     }
     if figures:
         growth = library_growth(ctx, s.seed)
-        rep.figures = {"kl_vs_samples": _fig_kl(ks, inc, em), "library_growth": _fig_growth(growth),
+        kl = fig_kl_vs_samples(ks, inc, em, xlabel="samples per class",
+                               title="Letters: KL to the labeled baseline (Fig. 4b)", std_bars=True)
+        rep.figures = {"kl_vs_samples": kl, "library_growth": _fig_growth(growth),
                        "components_hist": _fig_hist(final, n_shapes)}
     return rep

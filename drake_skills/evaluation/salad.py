@@ -9,10 +9,10 @@ files the generator depends on, so a retuned scene is regenerated). Every librar
 A component's task label is the majority task of the training demonstrations it
 absorbed: a created component gets one vote for the demonstration's task, every
 component the update touched (``Update.updated``) one vote, a merge adds the absorbed
-component's votes to the kept one, a deletion drops them (as
-``CollaborationSim.teach`` does). A test motion is *correct* when the recognized
-component's label is its task, *wrong* when it is another task, *unknown* when no
-component explains it.
+component's votes to the kept one, a deletion drops them
+(``drake_skills.library.labels.TaskVotes``, shared with ``CollaborationSim.teach``).
+A test motion is *correct* when the recognized component's label is its task,
+*wrong* when it is another task, *unknown* when no component explains it.
 
 Experiments (each a set of independent trials run by :func:`run_trials`; trial
 randomness comes from ``SeedSequence([seed, stream, ...ids])`` only, so the results do
@@ -65,7 +65,7 @@ from typing import Sequence
 import numpy as np
 
 from drake_skills.data.salad import TASKS
-from drake_skills.evaluation.common import EvalReport, Table, count_distribution, run_trials
+from drake_skills.evaluation.common import EvalReport, Table, count_distribution, fig_kl_vs_samples, run_trials
 
 log = logging.getLogger(__name__)
 
@@ -332,27 +332,25 @@ class LabeledLibrary:
 
     def __init__(self, config=None):
         from drake_skills import SkillLibrary
+        from drake_skills.library.labels import TaskVotes
 
         self.library = SkillLibrary(config)
-        self.votes: dict[int, Counter] = {}
+        self._votes = TaskVotes()
+
+    @property
+    def votes(self) -> dict[int, Counter]:
+        """Component id -> task counts of the demonstrations it absorbed."""
+        return self._votes.votes
 
     def teach(self, demo, workspace=None):
         """Fold ``demo`` in and update the votes from the returned ``Update``."""
         update = self.library.partial_fit(demo, workspace=workspace)
-        for k in update.created:
-            self.votes[k] = Counter({demo.task: 1})
-        for k in update.updated:
-            self.votes.setdefault(k, Counter())[demo.task] += 1
-        for kept, gone in update.merged:
-            self.votes.setdefault(kept, Counter()).update(self.votes.pop(gone, Counter()))
-        for k in update.deleted:
-            self.votes.pop(k, None)
+        self._votes.record(update, demo.task)
         return update
 
     def label_of(self, component: int | None) -> str | None:
         """The majority task of the demonstrations ``component`` absorbed (None if none)."""
-        c = self.votes.get(component) if component is not None else None
-        return c.most_common(1)[0][0] if c else None
+        return self._votes.label_of(component)
 
     def outcome(self, component: int | None, task: str) -> int:
         """CORRECT, WRONG or UNKNOWN for a recognized component and the true task."""
@@ -780,25 +778,6 @@ def _fig_classification(s: SaladSettings, names: list[str], table: Table):
     return fig
 
 
-def _fig_kl(ks, inc, em):
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(5.5, 3.8))
-    for name, a, c in (("incremental (ours)", inc, "tab:green"), ("batch EM (true K)", em, "tab:blue")):
-        mean = a.mean(axis=0)
-        lo, hi = np.percentile(a, 10, axis=0), np.percentile(a, 90, axis=0)
-        ax.plot(ks, mean, "o-", color=c, label=f"{name}: mean")
-        ax.fill_between(ks, lo, hi, color=c, alpha=0.2, label=f"{name}: 10-90 %")
-    ax.set_yscale("symlog", linthresh=1.0)
-    ax.set_xlabel("demonstrations per task")
-    ax.set_ylabel("KL(labeled ML || model), nats")
-    ax.set_title("Salad: KL to the labeled baseline (Fig. 7c)")
-    ax.legend(fontsize=7)
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    return fig
-
-
 def _fig_task_components(s: SaladSettings, tc: list[dict]):
     import matplotlib.pyplot as plt
 
@@ -974,7 +953,8 @@ def evaluate_salad(settings: SaladSettings | None = None, *, workers: int = 1, p
     if figures:
         t = time.perf_counter()
         rep.figures = {"classification": _fig_classification(s, names, cls_long),
-                       "kl_vs_demos": _fig_kl(ks, inc, em),
+                       "kl_vs_demos": fig_kl_vs_samples(ks, inc, em, xlabel="demonstrations per task",
+                                                        title="Salad: KL to the labeled baseline (Fig. 7c)"),
                        "components_per_task": _fig_task_components(s, tc),
                        "transfer": _fig_transfer(s, names, tr_t),
                        "response_vs_fraction": _fig_response(s, resp_rows)}

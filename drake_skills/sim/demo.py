@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import logging
 import math
-from collections import Counter
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -20,6 +19,7 @@ from pydrake.systems.analysis import Simulator
 
 from drake_skills.data.demonstration import Demonstration
 from drake_skills.library.incremental import SkillLibrary
+from drake_skills.library.labels import TaskVotes
 from drake_skills.promp.preprocessing import Workspace
 from drake_skills.sim.config import SimConfig
 from drake_skills.sim.diagram import DiagramHandles, build_diagram
@@ -144,7 +144,7 @@ class CollaborationSim:
         self._plant_context = h.plant.GetMyContextFromRoot(self.context)
         self._fk_context = h.controller_plant.CreateDefaultContext()
         self._fk_flange = h.controller_plant.GetFrameByName(FLANGE_FRAME)
-        self._labels: dict[int, Counter] = {}
+        self._votes = TaskVotes()
         self.time = 0.0
 
     # ------------------------------------------------------------ helpers
@@ -164,8 +164,7 @@ class CollaborationSim:
 
     def label_of(self, component: int) -> str | None:
         """The task most demonstrations taught into ``component`` had."""
-        c = self._labels.get(component)
-        return c.most_common(1)[0][0] if c else None
+        return self._votes.label_of(component)
 
     # ------------------------------------------------------------- trials
     def run_trial(self, demo: Demonstration) -> tuple[dict, TrialLog]:
@@ -225,14 +224,7 @@ class CollaborationSim:
     def teach(self, demo: Demonstration) -> None:
         """Fold ``demo`` into the library (Algorithm 1) and keep the task labels of the components."""
         update = self.library.partial_fit(demo, workspace=self.workspace)
-        for k in update.created:
-            self._labels[k] = Counter({demo.task: 1})
-        for k in update.updated:
-            self._labels.setdefault(k, Counter())[demo.task] += 1
-        for kept, gone in update.merged:
-            self._labels.setdefault(kept, Counter()).update(self._labels.pop(gone, Counter()))
-        for k in update.deleted:
-            self._labels.pop(k, None)
+        self._votes.record(update, demo.task)
         log.info("taught %s: created %s updated %s merged %s deleted %s (K=%d)", demo.task, update.created,
                  update.updated, update.merged, update.deleted, self.library.n_components)
 
