@@ -1,5 +1,4 @@
 """SkillLibrary: Algorithm 1 (Eqs. 5-12) on synthetic coupled demonstrations."""
-import io
 
 import numpy as np
 import pytest
@@ -9,7 +8,7 @@ from drake_skills.library import incremental
 from drake_skills.library.incremental import UnknownSkillError, incremental_update
 from drake_skills.promp.gaussian import merge_moments
 
-from synthetic import GOALS, synthetic_demo
+from synthetic import synthetic_demo
 
 
 def _taught_library(n_per_task=6, tasks=(0, 1, 2), seed=0, **cfg):

@@ -1,6 +1,5 @@
 """Library files: round trip, atomic writes, clear errors for bad files, no pickle."""
 import json
-import zipfile
 
 import numpy as np
 import pytest

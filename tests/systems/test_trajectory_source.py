@@ -1,5 +1,4 @@
 import numpy as np
-import pytest
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
