@@ -1,10 +1,15 @@
 # make demo: create .venv, install, run the main job.  make test: the test suite.
+# Both first run setup/install_prereqs (system packages: Chromium for the browser test).
 PYTHON ?= python3.11
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+export PYTHON
 
-.PHONY: demo test bench install clean
+.PHONY: demo test bench install prereqs clean
+
+prereqs:
+	@setup/install_prereqs
 
 $(STAMP): pyproject.toml
 	@command -v $(PYTHON) >/dev/null || { echo "need $(PYTHON) (set PYTHON=...)"; exit 1; }
@@ -13,12 +18,12 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e ".[test]"
 	touch $(STAMP)
 
-install: $(STAMP)
+install: prereqs $(STAMP)
 
-demo: $(STAMP)
+demo: install
 	$(BIN)/drake-skills demo
 
-test: $(STAMP)
+test: install
 	$(BIN)/python -m pytest -q
 
 bench: $(STAMP)
