@@ -17,7 +17,7 @@ _LAZY = {
     "InteractionProMP": "drake_skills.promp.interaction",
     "SkillLibrary": "drake_skills.library.incremental",
     "LibraryConfig": "drake_skills.library.incremental",
-    "Workspace": "drake_skills.promp.preprocessing",
+    "Workspace": "drake_skills.data.workspace",
 }
 
 __all__ = sorted(_LAZY)

@@ -8,7 +8,7 @@ import pytest
 from drake_skills import SkillLibrary
 from drake_skills.cli import build_parser, main
 from drake_skills.data.demos import load_demo, save_npz
-from drake_skills.data.salad import TASKS
+from drake_skills.scenario.salad import TASKS
 
 
 COMMANDS = ["demo", "learn", "recognize", "generate", "plot-demos", "eval", "bench"]

@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from drake_skills.data.salad import TASKS, generate_subject
+from drake_skills.scenario.salad import TASKS, generate_subject
 
 
 def _taught_sim(meshcat):

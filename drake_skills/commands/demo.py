@@ -39,7 +39,7 @@ def _row(r) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from drake_skills.data.salad import generate_subject
+    from drake_skills.scenario.salad import generate_subject
     from drake_skills.sim.config import load_sim_config
     from drake_skills.sim.demo import run_collaboration
     from drake_skills.sim.diagram import make_meshcat

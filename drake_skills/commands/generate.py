@@ -30,7 +30,7 @@ def register(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from drake_skills.data.demos import save_calibration, save_csv, save_npz
-    from drake_skills.data.salad import SLOPPY_SUBJECTS, TASKS, generate_subject
+    from drake_skills.scenario.salad import SLOPPY_SUBJECTS, TASKS, generate_subject
 
     tasks = tuple(args.tasks) if args.tasks else TASKS
     unknown = [t for t in tasks if t not in TASKS]

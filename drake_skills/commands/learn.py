@@ -30,7 +30,7 @@ def register(sub) -> None:
 def _subject_workspaces(demos_dir: Path) -> dict:
     """Workspace per subject directory that has a calibration file."""
     from drake_skills.data.demos import load_calibration
-    from drake_skills.promp.preprocessing import Workspace
+    from drake_skills.data.workspace import Workspace
 
     out = {}
     for cal in sorted(demos_dir.rglob("calibration.npz")):

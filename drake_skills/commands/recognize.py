@@ -29,7 +29,7 @@ def register(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     from drake_skills import SkillLibrary
     from drake_skills.data.demos import load_calibration, load_demo
-    from drake_skills.promp.preprocessing import Workspace
+    from drake_skills.data.workspace import Workspace
 
     lib = SkillLibrary.load(args.library)
     demo = load_demo(args.demo)

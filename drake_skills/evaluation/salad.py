@@ -1,6 +1,6 @@
 """The salad experiment of Sec. 4.2 (Tables 1-3, Figs. 7c and 9) and the robot's response error.
 
-Data: the simulated salad scenario (:mod:`drake_skills.data.salad`), ``n_subjects``
+Data: the simulated salad scenario (:mod:`drake_skills.scenario.salad`), ``n_subjects``
 subjects x 5 tasks x ``n_demos`` demonstrations, generated once (in parallel) and
 cached as ``.npz`` files under ``cache_dir`` (keyed by the data seed and a hash of the
 files the generator depends on, so a retuned scene is regenerated). Every library is a
@@ -64,7 +64,7 @@ from typing import Sequence
 
 import numpy as np
 
-from drake_skills.data.salad import TASKS
+from drake_skills.scenario.salad import TASKS
 from drake_skills.evaluation.common import EvalReport, Table, count_distribution, fig_kl_vs_samples, run_trials
 
 log = logging.getLogger(__name__)
@@ -81,8 +81,8 @@ TASK_COUNT_LABELS = ("<=1", "2", "3", "4", "5", ">=6")
 TABLE3_VARIANTS = {"with": "personal workspace", "without": "shared workspace",
                    "raw": "shared workspace, no start offset"}
 #: Files the generated data depends on (their hash keys the cache).
-_DATA_SOURCES = ("models/salad/scene.yaml", "models/iiwa7/iiwa7.sdf", "drake_skills/data/salad.py",
-                 "drake_skills/sim/models.py")
+_DATA_SOURCES = ("models/salad/scene.yaml", "models/iiwa7/iiwa7.sdf", "drake_skills/scenario/salad.py",
+                 "drake_skills/sim/salad_robot.py", "drake_skills/sim/models.py")
 _DEFAULT_FRACTIONS = tuple(round(0.1 * i, 1) for i in range(1, 11))
 
 
@@ -94,7 +94,7 @@ class SaladSettings:
     n_subjects: int = 10
     #: Demonstrations per task and subject.
     n_demos: int = 15
-    #: Tasks (subset of drake_skills.data.salad.TASKS).
+    #: Tasks (subset of drake_skills.scenario.salad.TASKS).
     tasks: tuple[str, ...] = TASKS
     #: Random splits per subject (Tables 1-2, response error), random orders (Fig. 7c, per
     #: task in Table 3) and trials per held-out subject (Fig. 9).
@@ -224,7 +224,7 @@ def _load_or_generate(ctx: dict, index: int):
     """SubjectData of subject ``index``: from the cache if complete, else generated (and cached)."""
     from drake_skills.data.demonstration import Demonstration
     from drake_skills.data.demos import load_calibration, load_npz, save_calibration, save_npz
-    from drake_skills.data.salad import SubjectData, generate_subject, make_subject
+    from drake_skills.scenario.salad import SubjectData, generate_subject, make_subject
 
     n_demos, seed, tasks = ctx["n_demos"], ctx["data_seed"], ctx["tasks"]
     sdir = _subject_dir(ctx["cache_root"], index)
@@ -276,7 +276,7 @@ def load_salad_data(settings: SaladSettings, *, workers: int = 1, progress: bool
 
 def shared_workspace(subjects: Sequence, z_factor: float = 0.9):
     """One workspace for everybody: the bounding box of all subjects' calibration motions."""
-    from drake_skills.promp.preprocessing import Workspace
+    from drake_skills.data.workspace import Workspace
 
     return Workspace.from_calibration([m for s in subjects for m in s.calibration], z_factor=z_factor)
 

@@ -85,7 +85,7 @@ class SimConfig:
     log_period: float = 1.0 / 32.0
     # number of trials of the demo
     trials: int = 20
-    # 1-based index of the simulated subject (drake_skills.data.salad)
+    # 1-based index of the simulated subject (drake_skills.scenario.salad)
     subject: int = 1
     # demonstrations generated per task for the subject (the trial pool)
     demos_per_task: int = 15

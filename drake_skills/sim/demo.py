@@ -20,7 +20,7 @@ from pydrake.systems.analysis import Simulator
 from drake_skills.data.demonstration import Demonstration
 from drake_skills.library.incremental import SkillLibrary
 from drake_skills.library.labels import TaskVotes
-from drake_skills.promp.preprocessing import Workspace
+from drake_skills.data.workspace import Workspace
 from drake_skills.sim.config import SimConfig
 from drake_skills.sim.diagram import DiagramHandles, build_diagram
 from drake_skills.sim.models import FLANGE_FRAME, IIWA7_JOINT_LIMITS

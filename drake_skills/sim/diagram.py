@@ -29,7 +29,7 @@ from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
 
 from drake_skills.library.incremental import SkillLibrary
-from drake_skills.promp.preprocessing import Workspace
+from drake_skills.data.workspace import Workspace
 from drake_skills.sim.config import SimConfig
 from drake_skills.sim.models import (FLANGE_FRAME, HOME_Q, IIWA7_JOINT_LIMITS, add_salad_scene, load_scene_config,
                                      make_iiwa7_plant)

@@ -9,7 +9,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
 
 from drake_skills.library.incremental import SkillLibrary
-from drake_skills.promp.preprocessing import Workspace
+from drake_skills.data.workspace import Workspace
 
 log = logging.getLogger(__name__)
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
-from drake_skills.promp.preprocessing import Workspace
+from drake_skills.data.workspace import Workspace
 
 #: Period of the start-position latch (s); exact in binary.
 LATCH_PERIOD = 1.0 / 64.0

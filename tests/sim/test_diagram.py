@@ -8,7 +8,7 @@ import pytest
 from pydrake.systems.analysis import Simulator
 
 from drake_skills import SkillLibrary
-from drake_skills.data.salad import TASKS, generate_subject
+from drake_skills.scenario.salad import TASKS, generate_subject
 from drake_skills.sim.config import SimConfig
 from drake_skills.sim.demo import CollaborationSim
 from drake_skills.sim.diagram import build_diagram
