@@ -75,8 +75,46 @@ def test_no_module_imports_from_a_layer_above_it():
     assert not upward, "\n".join(upward)
 
 
-def test_the_check_finds_an_upward_import():
-    """The test above can fail: the layers order the packages, and the graph sees lazy imports."""
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan)."""
+    index, low, stack, on_stack, out = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph[v]):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            scc = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                scc.append(w)
+                if w == v:
+                    break
+            if len(scc) > 1:
+                out.append(sorted(scc))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_no_import_cycle():
+    assert not _cycles(import_graph()), _cycles(import_graph())
+
+
+def test_the_checks_find_a_cycle_and_an_upward_import():
+    """The two tests above can fail: a planted cycle and a planted upward arrow are found."""
+    graph = {k: set(v) for k, v in import_graph().items()}
+    graph["drake_skills.data.demonstration"].add("drake_skills.library.incremental")
+    assert any("drake_skills.data.demonstration" in c for c in _cycles(graph))
     assert layer_of("drake_skills.library.incremental") > layer_of("drake_skills.data.demonstration")
     assert layer_of("drake_skills.sim.salad_robot") < layer_of("drake_skills.scenario.salad")
     assert "drake_skills.sim.models" in import_graph()["drake_skills.scenario.salad"]

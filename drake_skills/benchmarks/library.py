@@ -99,7 +99,7 @@ def run(quick: bool = False) -> list[dict]:
         t0 = time.perf_counter()
         lib.partial_fit(d)
         dt = time.perf_counter() - t0
-        W.append(lib._encode(d))  # the weights a batch learner would have to keep
+        W.append(lib.encode(d))  # the weights a batch learner would have to keep
         for N in sizes:
             if N < n <= N + 20:
                 pf_times.setdefault(N, []).append(dt)

@@ -8,7 +8,7 @@ Protocol (one *trial* = one random order of all demonstrations):
    order), so the streams are nested and each one is presented in random order.
 3. Fold the stream into a fresh :class:`SkillLibrary` (default
    :class:`LibraryConfig`, workspace = the bounding box of all letters).
-4. Encode the same demonstrations with ``lib._encode`` (the library's own
+4. Encode the same demonstrations with ``lib.encode`` (the library's own
    weight space) and fit the labeled maximum-likelihood baseline
    (:func:`labeled_ml`) and batch EM given the true number of shapes
    (:func:`batch_em`).
@@ -91,7 +91,7 @@ def letters_trial(ctx: dict, index: int) -> dict:
         lib = SkillLibrary(LibraryConfig(workspace=ws))
         for j in stream:
             lib.partial_fit(demos[j])
-        W = np.stack([lib._encode(demos[j], ws) for j in stream])
+        W = np.stack([lib.encode(demos[j], ws) for j in stream])
         labels = [tasks[j] for j in stream]
         base = labeled_ml(W, labels).as_tuple()
         em = batch_em(W, n_shapes, random_state=int(rng.integers(2 ** 31 - 1)), n_init=s.em_n_init)
@@ -136,7 +136,7 @@ def library_growth(ctx: dict, order_seed: int) -> dict:
         n_comp.append(lib.n_components)
         if i in wanted:
             snaps[i] = [(*_trajectory_band(lib, c, 0), c.id) for c in lib.components]
-    samples = [lib._human_samples(demos[j].human, ws) for j in order]
+    samples = [lib.human_samples(demos[j].human, workspace=ws) for j in order]
     return {"order": order, "snapshots": snaps, "samples": samples, "n_components": np.array(n_comp),
             "final": lib}
 

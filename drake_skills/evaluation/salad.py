@@ -490,7 +490,7 @@ def kl_trial(ctx: dict, index: int) -> dict:
         for j in stream:
             lib.partial_fit(demos[j], workspace=ws)
         h = lib.n_human
-        W = np.stack([lib._encode(demos[j], ws)[:h] for j in stream])
+        W = np.stack([lib.encode(demos[j], ws)[:h] for j in stream])
         base = labeled_ml(W, [tasks[j] for j in stream]).as_tuple()
         em = batch_em(W, len(s.tasks), random_state=int(rng.integers(2 ** 31 - 1)), n_init=s.em_n_init)
         kl_seed = int(rng.integers(2 ** 31 - 1))

@@ -88,9 +88,27 @@ def mahalanobis_sq(x, mean, L) -> np.ndarray:
 
 def log_density(x, mean, L) -> np.ndarray:
     """``log N(x | mean, L L^T)`` for one point (d,) or many (n, d)."""
+    return log_density_from_mahalanobis(mahalanobis_sq(x, mean, L), L)
+
+
+def log_density_from_mahalanobis(d2, L) -> np.ndarray:
+    """``log N`` of points whose squared Mahalanobis distances ``d2`` are known.
+
+    Parameters
+    ----------
+    d2 : float or array, shape (n,)
+        From :func:`mahalanobis_sq` with the same ``L``.
+    L : array, shape (d, d)
+        Lower Cholesky factor of the covariance.
+
+    Returns
+    -------
+    float or array, shape (n,)
+        ``-(d log 2 pi + log det(L L^T) + d2) / 2``.
+    """
     d = L.shape[0]
     logdet = 2.0 * np.sum(np.log(np.diag(L)))
-    return -0.5 * (d * _LOG_2PI + logdet + mahalanobis_sq(x, mean, L))
+    return -0.5 * (d * _LOG_2PI + logdet + d2)
 
 
 def gmm_log_density(x, weights, means, chols) -> np.ndarray:

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from drake_skills import Demonstration, LibraryConfig, SkillLibrary
-from drake_skills.library import incremental
+from drake_skills.library import algorithm
 from drake_skills.library.incremental import UnknownSkillError, incremental_update
 from drake_skills.promp.gaussian import merge_moments
 
@@ -204,7 +204,7 @@ def test_failed_update_leaves_library_exactly_as_it_was(tmp_path, monkeypatch):
     # a numerical failure in the middle of an update (after the weights were computed)
     def boom(*a, **k):
         raise np.linalg.LinAlgError("injected failure")
-    monkeypatch.setattr(incremental, "incremental_update", boom)
+    monkeypatch.setattr(algorithm, "incremental_update", boom)
     with pytest.raises(np.linalg.LinAlgError):
         lib.partial_fit(synthetic_demo(0, rng))
     after = tmp_path / "after.npz"
@@ -262,3 +262,103 @@ def test_config_rejects_bad_values_and_round_trips():
 def test_loglik_novelty_test_also_separates_skills():
     lib = _taught_library(n_per_task=6, tasks=(0, 1, 2), novelty_test="loglik")
     assert lib.n_components == 3
+
+
+def test_state_snapshot_rebuilds_a_library_that_answers_and_learns_identically():
+    lib = _taught_library(tasks=(0, 1, 2), merge_min_age=2)
+    state = lib.state()
+    copy = SkillLibrary.from_state(state)
+    assert copy.state().next_id == state.next_id and copy.history == lib.history
+    rng = np.random.default_rng(12)
+    for task in (0, 1, 2, 3):
+        h = synthetic_demo(task, rng).human
+        a, b = lib.recognize(h), copy.recognize(h)
+        assert a.component == b.component
+        np.testing.assert_array_equal(a.log_likelihoods, b.log_likelihoods)
+    demo = synthetic_demo(1, rng)
+    assert lib.partial_fit(demo) == copy.partial_fit(demo)
+    for c, d in zip(lib.components, copy.components):
+        np.testing.assert_array_equal(c.cov, d.cov)
+
+
+def test_state_is_a_read_only_snapshot_that_later_learning_does_not_change():
+    lib = _taught_library(tasks=(0, 1))
+    state = lib.state()
+    means = [np.array(c.mean) for c in state.components]
+    with pytest.raises(ValueError):
+        state.components[0].mean[0] = 1.0
+    lib.partial_fit(synthetic_demo(0, np.random.default_rng(13)))
+    assert state.n_seen == lib.n_seen - 1
+    for c, m in zip(state.components, means):
+        np.testing.assert_array_equal(c.mean, m)
+
+
+def test_library_state_rejects_inconsistent_components():
+    from dataclasses import replace
+
+    state = _taught_library(tasks=(0, 1)).state()
+    c0, c1 = state.components[:2]
+    with pytest.raises(ValueError, match="duplicated"):
+        replace(state, components=(c0, replace(c1, id=c0.id)))
+    with pytest.raises(ValueError, match="shapes"):
+        replace(state, components=(replace(c0, mean=c0.mean[:-1]),))
+    with pytest.raises(ValueError, match="positive definite"):
+        replace(state, components=(replace(c0, cov=-np.eye(state.n_weights)),))
+
+
+def test_encode_gives_the_gating_weights_first_then_the_robot_weights():
+    lib = _taught_library(tasks=(0,))
+    demo = synthetic_demo(0, np.random.default_rng(14))
+    w = lib.encode(demo)
+    cfg = lib.config
+    assert w.shape == (3 * cfg.n_basis_human + 7 * cfg.n_basis_robot,)
+    from drake_skills.promp.basis import ridge_weights
+
+    np.testing.assert_array_equal(w[:lib.n_human], ridge_weights(lib.human_samples(demo.human), cfg.basis_human,
+                                                                 cfg.ridge))
+    with pytest.raises(ValueError, match="Demonstration"):
+        lib.encode(demo.human)
+
+
+def test_normalized_samples_are_only_resampled():
+    from drake_skills.data.workspace import Workspace
+
+    ws = Workspace(np.array([-8.0, -8.0, -8.0]), np.array([8.0, 8.0, 8.0]))
+    rng = np.random.default_rng(15)
+    lib = SkillLibrary()
+    for i in range(9):
+        lib.partial_fit(synthetic_demo(i % 3, rng), workspace=ws)
+    h = synthetic_demo(2, rng).human
+    y = ws.normalize(h, subtract_start=True)
+    a, b = lib.recognize(h, workspace=ws), lib.recognize(y, normalized=True)
+    assert a.component == b.component
+    np.testing.assert_array_equal(a.log_likelihoods, b.log_likelihoods)
+    np.testing.assert_array_equal(lib.predict_robot(h, workspace=ws)[0], lib.predict_robot(y, normalized=True)[0])
+    half = y[: len(y) // 2]
+    np.testing.assert_array_equal(lib.recognize(h[: len(h) // 2], observed_fraction=0.5, workspace=ws).mahalanobis_sq,
+                                  lib.recognize(half, observed_fraction=0.5, normalized=True).mahalanobis_sq)
+    with pytest.raises(ValueError, match="no workspace"):
+        lib.recognize(y, normalized=True, workspace=ws)
+
+
+def test_the_novelty_rule_is_chosen_in_one_place_and_can_be_swapped():
+    from drake_skills.library.algorithm import ComponentModel, fold_in
+    from drake_skills.library.novelty import Chi2Rule, LogLikRule, novelty_rule
+
+    assert isinstance(novelty_rule(LibraryConfig()), Chi2Rule)
+    assert isinstance(novelty_rule(LibraryConfig(novelty_test="loglik")), LogLikRule)
+
+    class EverythingIsNovel:
+        def novel(self, log_likelihoods, mahalanobis_sq, dof):
+            return np.ones(len(mahalanobis_sq), bool)
+
+        def merge_scores(self, mahalanobis_sq, support, chol):
+            return np.full(len(mahalanobis_sq), np.inf)
+
+    lib = _taught_library(tasks=(0,))
+    comps = [ComponentModel.of(c, lib.n_human, lib.config.gating_floor) for c in lib.state().components]
+    w = lib.encode(synthetic_demo(0, np.random.default_rng(16)))
+    kw = dict(n_human=lib.n_human, config=lib.config, next_id=lib.state().next_id, demo_index=lib.n_seen)
+    assert fold_in(comps, w, 1.0, **kw).created == ()  # the default rule: the same skill again
+    step = fold_in(comps, w, 1.0, rule=EverythingIsNovel(), **kw)
+    assert step.created == (kw["next_id"],) and len(step.components) == len(comps) + 1

@@ -61,7 +61,7 @@ def test_kl_to_labeled_baseline_falls_with_samples_per_shape(letters):
             lib = SkillLibrary(LibraryConfig(workspace=ws))
             for i in rng.permutation(len(chosen)):
                 lib.partial_fit(chosen[i])
-            W = np.stack([lib._encode(d) for d in chosen])
+            W = np.stack([lib.encode(d) for d in chosen])
             base = labeled_ml(W, [d.task for d in chosen])
             vals.append(mc_kl_mixtures(base.as_tuple(), lib.as_mixture(), n_samples=2000, random_state=seed))
             em = batch_em(W, 5, random_state=seed)
