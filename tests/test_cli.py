@@ -110,3 +110,32 @@ def test_learn_extends_an_existing_library(dataset, tmp_path):
 def test_missing_directory_is_a_clear_error(tmp_path, capsys):
     assert main(["learn", str(tmp_path / "nope")]) == 1
     assert "does not exist" in capsys.readouterr().err
+
+
+LIBRARY_COMMANDS = [["demo"], ["learn", "DIR"], ["bench"]]
+
+
+@pytest.mark.parametrize("command", LIBRARY_COMMANDS, ids=lambda c: c[0])
+def test_every_command_that_builds_a_library_takes_a_config(command, capsys):
+    args = build_parser().parse_args(command + ["--config", "c.yaml"])
+    assert str(args.config) == "c.yaml"
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(command[:1] + ["--help"])
+    assert "LibraryConfig" in capsys.readouterr().out.replace("\n", " ")
+
+
+def test_learn_reads_the_library_part_of_a_sim_config(dataset, tmp_path):
+    cfg = tmp_path / "sim.yaml"
+    cfg.write_text("seed: 5\nlibrary:\n  n_basis_robot: 12\n  gating_floor: 0.8\n")
+    out = tmp_path / "lib.npz"
+    assert main(["learn", str(dataset / "train"), "--out", str(out), "--config", str(cfg)]) == 0
+    config = SkillLibrary.load(out).config
+    assert config.n_basis_robot == 12 and config.gating_floor == 0.8
+
+
+def test_a_bad_config_is_an_error_naming_the_file(dataset, tmp_path, capsys):
+    cfg = tmp_path / "bad.yaml"
+    cfg.write_text("library:\n  ridge: -1\n")
+    assert main(["learn", str(dataset / "train"), "--out", str(tmp_path / "x.npz"), "--config", str(cfg)]) == 1
+    err = capsys.readouterr().err
+    assert "bad.yaml" in err and "ridge" in err, err

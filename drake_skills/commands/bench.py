@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from drake_skills.commands import add_common
+from drake_skills.commands import add_common, add_config
 
 
 def _suites():
@@ -30,6 +30,7 @@ def register(subparsers) -> None:
     parser.add_argument("--quick", action="store_true", help="fewer repeats and smaller sizes")
     parser.add_argument("--suite", choices=suites, action="append",
                         help="suite to run (repeatable; default: all of " + ", ".join(suites) + ")")
+    add_config(parser)  # libraries of the library and sim suites (default: each suite's own settings)
     add_common(parser, "bench")
     parser.set_defaults(func=main)
 
@@ -59,10 +60,15 @@ def main(args: argparse.Namespace) -> int:
     suites = _suites()
     names = args.suite or sorted(suites)
     np.random.seed(args.seed)  # legacy global RNG, used by sklearn inside some suites
+    config = None
+    if args.config is not None:
+        from drake_skills.sim.config import load_config
+
+        config = load_config(args.config)
     rows = []
     for name in names:
         t0 = time.perf_counter()
-        for row in suites[name](quick=args.quick):
+        for row in suites[name](quick=args.quick, config=config):
             rows.append({"suite": name, **row})
         print(f"suite {name}: {time.perf_counter() - t0:.1f} s", flush=True)
     print(format_table(rows))

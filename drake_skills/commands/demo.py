@@ -5,9 +5,9 @@ import argparse
 import json
 import math
 import time
-from pathlib import Path
+from dataclasses import replace
 
-from drake_skills.commands import add_common
+from drake_skills.commands import add_common, add_config
 
 
 def register(sub) -> None:
@@ -19,14 +19,16 @@ def register(sub) -> None:
                     "conditioned response, or it answers 'unknown', holds still, and the trial's "
                     "demonstration is folded into the library. Writes OUT/summary.json, OUT/library.npz and "
                     "OUT/demo.html (a self-contained meshcat recording of the whole run).")
-    p.add_argument("--trials", type=int, default=None, help="number of trials (default 20; 8 with --quick)")
-    p.add_argument("--subject", type=int, default=1, help="1-based index of the simulated subject (default 1)")
-    p.add_argument("--config", type=Path, default=None, help="YAML file of SimConfig fields")
+    p.add_argument("--trials", type=int, default=None,
+                   help="number of trials (default: the config's, 20; 8 with --quick)")
+    p.add_argument("--subject", type=int, default=None,
+                   help="1-based index of the simulated subject (default: the config's, 1)")
+    add_config(p)
     p.add_argument("--quick", action="store_true", help="a short run: 8 trials from 4 demonstrations per task")
     p.add_argument("--meshcat", action="store_true",
                    help="serve the recording live on localhost instead of writing demo.html "
                         "(prints the URL, serves until Ctrl-C)")
-    add_common(p, "demo")
+    add_common(p, "demo", seed=None, seed_help="random seed (default: the config's seed, 0)")
     p.set_defaults(func=run)
 
 
@@ -40,18 +42,17 @@ def _row(r) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from drake_skills.scenario.salad import generate_subject
-    from drake_skills.sim.config import load_sim_config
+    from drake_skills.sim.config import load_config
     from drake_skills.sim.demo import run_collaboration
     from drake_skills.sim.diagram import make_meshcat
 
-    cfg = load_sim_config(args.config)
-    cfg.seed = args.seed
-    cfg.subject = args.subject
+    cfg = load_config(args.config)
+    overrides = {"seed": args.seed, "subject": args.subject}
     if args.quick:
-        cfg.trials, cfg.demos_per_task = 8, 4
+        overrides.update(trials=8, demos_per_task=4)
     if args.trials is not None:
-        cfg.trials = args.trials
-    cfg.__post_init__()
+        overrides["trials"] = args.trials
+    cfg = replace(cfg, **{k: v for k, v in overrides.items() if v is not None})  # validated again
     args.out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     data = generate_subject(cfg.subject, n_demos=cfg.demos_per_task, seed=cfg.seed)

@@ -10,6 +10,8 @@ import numpy as np
 
 
 def register(sub) -> None:
+    from drake_skills.commands import add_config
+
     p = sub.add_parser(
         "learn", help="learn (or extend) a skill library from a directory of demonstrations",
         description="Fold the demonstrations in DEMOS_DIR (.npz or .csv files, searched recursively) into a "
@@ -20,8 +22,7 @@ def register(sub) -> None:
                    help="library file to write (default ./out/learn/library.npz)")
     p.add_argument("--library", type=Path, default=None,
                    help="existing library to extend (default: start empty)")
-    p.add_argument("--config", type=Path, default=None,
-                   help="YAML file of LibraryConfig fields (only for a new library)")
+    add_config(p)  # for a new library only; an extended one keeps its own
     p.add_argument("--seed", type=int, default=0, help="seed of the presentation order (default 0)")
     p.add_argument("--in-order", action="store_true", help="present the demonstrations in file order, not shuffled")
     p.set_defaults(func=run)
@@ -42,8 +43,9 @@ def _subject_workspaces(demos_dir: Path) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
-    from drake_skills import LibraryConfig, SkillLibrary
+    from drake_skills import SkillLibrary
     from drake_skills.data.demos import load_dir
+    from drake_skills.sim.config import load_library_config
 
     if not args.demos_dir.is_dir():
         raise FileNotFoundError(f"demonstration directory '{args.demos_dir}' does not exist")
@@ -56,12 +58,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError("--config applies to a new library only; the existing library keeps its own")
         lib = SkillLibrary.load(args.library)
     else:
-        cfg = LibraryConfig()
-        if args.config is not None:
-            import yaml
-
-            cfg = LibraryConfig.from_dict(yaml.safe_load(args.config.read_text()) or {})
-        lib = SkillLibrary(cfg)
+        lib = SkillLibrary(load_library_config(args.config))
     order = np.arange(len(demos)) if args.in_order else np.random.default_rng(args.seed).permutation(len(demos))
     print(f"learning from {len(demos)} demonstrations in {args.demos_dir} "
           f"({len(workspaces)} subject calibration(s)); library starts with {lib.n_components} component(s)")

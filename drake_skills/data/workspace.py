@@ -32,7 +32,7 @@ class Workspace:
     scale: float = 10.0
 
     def __post_init__(self):
-        lo = as_finite_array(self.lower, "workspace lower bound", ndim=1)
+        lo = as_finite_array(self.lower, "workspace lower bound", ndim=1, min_rows=1)
         hi = as_finite_array(self.upper, "workspace upper bound", shape=lo.shape)
         if (hi <= lo).any():
             axes = np.nonzero(hi <= lo)[0].tolist()

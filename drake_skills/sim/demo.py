@@ -284,7 +284,7 @@ def run_collaboration(config: SimConfig, demos: list[Demonstration], workspace: 
         The subject's demonstrations (with ``task`` labels and robot trajectories).
     workspace : Workspace
     library : SkillLibrary, optional
-        Default: a new, empty one.
+        Default: a new, empty one with ``config.library``.
     meshcat : Meshcat, optional
         If given, the whole run is recorded into its animation (the caller publishes it).
     on_trial : callable, optional
@@ -297,7 +297,7 @@ def run_collaboration(config: SimConfig, demos: list[Demonstration], workspace: 
     """
     import time as _time
 
-    library = library if library is not None else SkillLibrary()
+    library = library if library is not None else SkillLibrary(config.library)
     rng = np.random.default_rng(config.seed)
     stream = trial_stream(demos, config.trials, rng)
     sim = CollaborationSim(config, library, workspace, meshcat)

@@ -132,7 +132,7 @@ def build_diagram(config: SimConfig, *, library: SkillLibrary, workspace: Worksp
     lower, upper = IIWA7_JOINT_LIMITS
     wrist = builder.AddSystem(HumanWristSource())
     normalizer = builder.AddSystem(WorkspaceNormalizer(workspace))
-    gating = builder.AddSystem(SkillGating(library, config.decision.rule(), dim=workspace.dim,
+    gating = builder.AddSystem(SkillGating(library, config.decision, dim=workspace.dim,
                                            scale=workspace.scale))
     conditioner = builder.AddSystem(InteractionProMPConditioner(library, n_steps=config.n_steps,
                                                                 scale=workspace.scale))

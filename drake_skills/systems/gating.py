@@ -2,13 +2,14 @@
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
 
 from drake_skills.library.incremental import SkillLibrary
+from drake_skills.systems.decision_rule import DecisionRule
 from drake_skills.data.workspace import Workspace
 
 log = logging.getLogger(__name__)
@@ -19,35 +20,6 @@ GATING_PERIOD = 1.0 / 64.0
 PENDING = -2
 #: Value of the "component" output when the motion matches no skill.
 UNKNOWN = -1
-
-
-@dataclass(frozen=True)
-class DecisionRule:
-    """When is the person's motion over?
-
-    All distances are in normalized workspace units (Eq. 14: the workspace
-    spans [0, 10]), so one setting carries across subjects.
-    """
-
-    #: The wrist must first get this far from its start position.
-    min_travel: float = 1.0
-    #: ... and then stay within ``still_radius`` of its last position for this long (s).
-    still_duration: float = 0.4
-    #: Radius of "still".
-    still_radius: float = 0.05
-    #: Decide at this time after the first sample (s) whatever the motion does
-    #: (None: only when the motion is over).
-    decision_time: float | None = None
-    #: Decide at the latest this long after the first sample (s), motion over or not.
-    timeout: float = 10.0
-
-    def __post_init__(self):
-        for name in ("min_travel", "still_duration", "still_radius", "timeout"):
-            v = getattr(self, name)
-            if not np.isfinite(v) or v <= 0:
-                raise ValueError(f"DecisionRule.{name} must be positive, got {v!r}")
-        if self.decision_time is not None and not self.decision_time > 0:
-            raise ValueError(f"DecisionRule.decision_time must be positive or None, got {self.decision_time!r}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -215,7 +187,9 @@ class SkillGating(LeafSystem):
         if not isinstance(library, SkillLibrary):
             raise ValueError(f"library must be a SkillLibrary, got {type(library).__name__}")
         self._library = library
-        self._rule = rule if rule is not None else DecisionRule()
+        if rule is not None and not isinstance(rule, DecisionRule):
+            raise ValueError(f"rule must be a DecisionRule, got {type(rule).__name__}")
+        self._rule = replace(rule) if rule is not None else DecisionRule()  # our own copy
         self._scale = float(scale)
         self._wrist = self.DeclareVectorInputPort("normalized_wrist", dim)
         self._state = self.DeclareAbstractState(AbstractValue.Make(GatingDecision(

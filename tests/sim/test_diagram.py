@@ -1,4 +1,5 @@
 """The closed loop in simulation: build, run, hand over, hold still, render (pydrake is a hard dependency)."""
+import json
 import shutil
 import subprocess
 from pathlib import Path
@@ -82,11 +83,14 @@ def test_demo_command_writes_a_recording_that_renders_the_robot(tmp_path):
 
     assert Path(CHROMIUM).exists() or shutil.which("chromium"), "chromium is required: apt-get install chromium"
     out = tmp_path / "demo"
-    assert main(["demo", "--quick", "--trials", "3", "--out", str(out)]) == 0
+    config = tmp_path / "sim.yaml"  # the demo builds its library from SimConfig.library
+    config.write_text("seed: 4\nlibrary:\n  n_basis_robot: 18\n")
+    assert main(["demo", "--quick", "--trials", "3", "--seed", "0", "--config", str(config), "--out", str(out)]) == 0
     html = out / "demo.html"
     assert html.stat().st_size > 100_000
-    assert (out / "summary.json").exists() and (out / "library.npz").exists()
-    assert SkillLibrary.load(out / "library.npz").n_components >= 1
+    assert json.loads((out / "summary.json").read_text())["seed"] == 0  # --seed wins over the file
+    lib = SkillLibrary.load(out / "library.npz")
+    assert lib.n_components >= 1 and lib.config.n_basis_robot == 18
     shot = tmp_path / "shot.png"
     chromium = CHROMIUM if Path(CHROMIUM).exists() else shutil.which("chromium")
     subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
