@@ -3,7 +3,10 @@ import numpy as np
 
 
 from drake_skills import Demonstration
+from drake_skills.data.workspace import Workspace
 
+#: The synthetic demos are in normalized units already: this workspace maps them to themselves (up to rounding).
+WORKSPACE = Workspace(np.zeros(3), np.full(3, 10.0))
 #: Goal of each synthetic skill in normalized units (the workspace is [0, 10]).
 GOALS = np.array([[6.0, 2.0, 1.0], [1.0, 6.0, 3.0], [-4.0, 3.0, 4.0], [2.0, -5.0, 2.0]])
 

@@ -24,13 +24,31 @@ from drake_skills.data.workspace import Workspace
 from drake_skills.sim.config import SimConfig
 from drake_skills.sim.diagram import DiagramHandles, build_diagram
 from drake_skills.sim.models import FLANGE_FRAME, IIWA7_JOINT_LIMITS
-from drake_skills.systems.gating import UNKNOWN
 from drake_skills.systems.wrist_source import WristTrial
 
 log = logging.getLogger(__name__)
 
 #: Trials start on multiples of this (s), so the 1/64 s updates keep their phase.
 TRIAL_GRID = 1.0 / 64.0
+#: ``TrialResult.component`` of an "unknown" answer (the JSON record keeps an int).
+UNKNOWN = -1
+
+
+@dataclass(frozen=True)
+class TrialOutcome:
+    """What the closed loop did in one trial (:meth:`CollaborationSim.run_trial`)."""
+
+    #: The chosen component id, None for unknown.
+    component: int | None
+    #: Simulation time of the decision, relative to the trial start (s); NaN if none.
+    decision_time: float
+    #: Simulation time span of the trial (s).
+    start_time: float
+    end_time: float
+    #: A conditioned trajectory was executed.
+    executed: bool
+    #: Simulation time at which it started (NaN if none).
+    plan_start: float
 
 
 @dataclass
@@ -167,14 +185,13 @@ class CollaborationSim:
         return self._votes.label_of(component)
 
     # ------------------------------------------------------------- trials
-    def run_trial(self, demo: Demonstration) -> tuple[dict, TrialLog]:
+    def run_trial(self, demo: Demonstration) -> tuple[TrialOutcome, TrialLog]:
         """Replay ``demo``'s wrist and let the closed loop answer it.
 
-        Returns
-        -------
-        outcome : dict
-            component, decision_time, start_time, end_time, the final q.
-        log : TrialLog
+        The simulation advances in steps of ``config.log_period`` (joints logged
+        at each) until the Diagram's ``trial_status`` says the trial is over, or
+        at the latest the demonstration's duration plus the decision timeout plus
+        the hold time.
         """
         cfg = self.config
         h = self.handles
@@ -184,41 +201,31 @@ class CollaborationSim:
         ctx.SetTime(t0)
         h.wrist_source.SetTrial(h.wrist_source.GetMyContextFromRoot(ctx), WristTrial(demo.t, demo.human, t0))
         self.simulator.Initialize()
-        gating_ctx = h.gating.GetMyContextFromRoot(ctx)
-        cond_ctx = h.conditioner.GetMyContextFromRoot(ctx)
+        status_port = h.trial_monitor.GetOutputPort("trial_status")
+        monitor_ctx = h.trial_monitor.GetMyContextFromRoot(ctx)
         source_port = h.trajectory_source.GetOutputPort("desired_state")
         source_ctx = h.trajectory_source.GetMyContextFromRoot(ctx)
         deadline = t0 + demo.duration + cfg.decision.timeout + cfg.unknown_hold_time
         times, qs, qds = [t0], [self.joint_positions()], [source_port.Eval(source_ctx)[:7].copy()]
         t = t0
-        end_set = False
+        end_known = False
         while t < deadline - 1e-12:
             t = min(t + cfg.log_period, deadline)
             self.simulator.AdvanceTo(t)
             times.append(t)
             qs.append(self.joint_positions())
             qds.append(source_port.Eval(source_ctx)[:7].copy())
-            if end_set:
-                continue
-            decision = h.gating.decision(gating_ctx)
-            if not decision.decided:
-                continue
-            if decision.component == UNKNOWN:
-                deadline, end_set = decision.time + cfg.unknown_hold_time, True
-                continue
-            traj = h.conditioner.trajectory(cond_ctx)
-            if traj is not None:
-                deadline, end_set = traj.end_time + cfg.settle_time, True
-            elif h.conditioner.GetOutputPort("robot_trajectory").Eval(cond_ctx) is None and t > decision.time + 0.1:
-                deadline, end_set = decision.time + cfg.unknown_hold_time, True  # conditioning failed
-        decision = h.gating.decision(gating_ctx)
+            if not end_known:
+                end = status_port.Eval(monitor_ctx).end_time
+                if end is not None:
+                    deadline, end_known = end, True
         self.time = t
-        outcome = dict(component=int(decision.component) if decision.decided else UNKNOWN,
-                       decision_time=float(decision.time) - t0 if decision.decided else float("nan"),
-                       start_time=t0, end_time=t,
-                       executed=h.conditioner.trajectory(cond_ctx) is not None,
-                       plan_start=(h.conditioner.trajectory(cond_ctx).start_time
-                                   if h.conditioner.trajectory(cond_ctx) is not None else float("nan")))
+        decision = h.gating.decision(h.gating.GetMyContextFromRoot(ctx))
+        traj = h.conditioner.trajectory(h.conditioner.GetMyContextFromRoot(ctx))
+        outcome = TrialOutcome(component=decision.component if decision.decided else None,
+                               decision_time=float(decision.time) - t0 if decision.decided else float("nan"),
+                               start_time=t0, end_time=t, executed=traj is not None,
+                               plan_start=traj.start_time if traj is not None else float("nan"))
         return outcome, TrialLog(np.array(times), np.array(qs), np.array(qds))
 
     def teach(self, demo: Demonstration) -> None:
@@ -228,27 +235,27 @@ class CollaborationSim:
         log.info("taught %s: created %s updated %s merged %s deleted %s (K=%d)", demo.task, update.created,
                  update.updated, update.merged, update.deleted, self.library.n_components)
 
-    def evaluate_trial(self, index: int, demo: Demonstration, outcome: dict, trial_log: TrialLog,
+    def evaluate_trial(self, index: int, demo: Demonstration, outcome: TrialOutcome, trial_log: TrialLog,
                        task_known: bool) -> TrialResult:
         """Score one trial (before any teaching)."""
         lower, upper = IIWA7_JOINT_LIMITS
-        k = outcome["component"]
+        k = UNKNOWN if outcome.component is None else outcome.component
         q = trial_log.q
         displacement = float(np.max(np.abs(q - q[0]))) if len(q) else 0.0
         within = bool(((q >= lower - 1e-6) & (q <= upper + 1e-6)).all())
         recognized_task = self.label_of(k) if k >= 0 else None
         correct = (k == UNKNOWN) if not task_known else (recognized_task == demo.task)
         flange_error = tracking = float("nan")
-        if outcome["executed"] and demo.robot is not None:
+        if outcome.executed and demo.robot is not None:
             p_sim = self.simulated_flange_position()
             p_demo = self.flange_position(demo.robot[-1])
             flange_error = 100.0 * float(np.linalg.norm(p_sim - p_demo))
-            mask = trial_log.times >= outcome["plan_start"]
+            mask = trial_log.times >= outcome.plan_start
             err = trial_log.q[mask] - trial_log.q_desired[mask]
             tracking = float(np.sqrt(np.mean(err ** 2))) if err.size else float("nan")
         return TrialResult(index, str(demo.task), k, "unknown" if k < 0 else f"skill {k}", recognized_task,
                            task_known, bool(correct), False, flange_error, tracking, displacement, within,
-                           outcome["decision_time"], outcome["start_time"], outcome["end_time"])
+                           outcome.decision_time, outcome.start_time, outcome.end_time)
 
 
 def trial_stream(demos: list[Demonstration], n_trials: int, rng: np.random.Generator) -> list[Demonstration]:

@@ -3,12 +3,20 @@
 ::
 
     HumanWristSource ─▶ WorkspaceNormalizer ─▶ SkillGating ─▶ InteractionProMPConditioner
-                                                                     │ robot_trajectory
-    plant state ─▶ JointTrajectorySource ◀───────────────────────────┘
+                                                  │ decision           │ robot_trajectory, conditioning
+                                                  └─▶ TrialMonitor ◀───┤  (trial_status: phase, end time)
+    plant state ─▶ JointTrajectorySource ◀─────────────────────────────┘
                         │ desired state, acceleration
                         ▼
                InverseDynamicsController ─▶ MultibodyPlant (IIWA7 + scene) ─▶ MeshcatVisualizer
                   (own iiwa-only plant)
+
+The wrist is normalized once (Eq. 14, in the normalizer, as the library's config
+asks); the gating and the conditioner hand the normalized samples to the library,
+which only resamples them. The decision travels as a
+:class:`~drake_skills.systems.gating.GatingDecision` (the component id an int), and
+the end of a trial is the ``trial_status`` output of the
+:class:`~drake_skills.systems.trial_monitor.TrialMonitor`.
 
 The person is never a body of the plant: the wrist is drawn in meshcat by
 :class:`~drake_skills.sim.wrist_marker.WristMarker`.  This module is the only
@@ -38,6 +46,7 @@ from drake_skills.systems.conditioner import InteractionProMPConditioner
 from drake_skills.systems.gating import SkillGating
 from drake_skills.systems.normalizer import WorkspaceNormalizer
 from drake_skills.systems.trajectory_source import JointTrajectorySource
+from drake_skills.systems.trial_monitor import TrialMonitor
 from drake_skills.systems.wrist_source import HumanWristSource
 
 log = logging.getLogger(__name__)
@@ -61,6 +70,7 @@ class DiagramHandles:
     gating: SkillGating
     conditioner: InteractionProMPConditioner
     trajectory_source: JointTrajectorySource
+    trial_monitor: TrialMonitor
     visualizer: MeshcatVisualizer | None = None
     wrist_marker: WristMarker | None = None
     meshcat: Meshcat | None = None
@@ -131,20 +141,22 @@ def build_diagram(config: SimConfig, *, library: SkillLibrary, workspace: Worksp
 
     lower, upper = IIWA7_JOINT_LIMITS
     wrist = builder.AddSystem(HumanWristSource())
-    normalizer = builder.AddSystem(WorkspaceNormalizer(workspace))
-    gating = builder.AddSystem(SkillGating(library, config.decision, dim=workspace.dim,
-                                           scale=workspace.scale))
-    conditioner = builder.AddSystem(InteractionProMPConditioner(library, n_steps=config.n_steps,
-                                                                scale=workspace.scale))
+    normalizer = builder.AddSystem(WorkspaceNormalizer(workspace, subtract_start=library.config.subtract_start))
+    gating = builder.AddSystem(SkillGating(library, config.decision, dim=workspace.dim))
+    conditioner = builder.AddSystem(InteractionProMPConditioner(library, n_steps=config.n_steps))
     source = builder.AddSystem(JointTrajectorySource(lower, upper, HOME_Q))
+    monitor = builder.AddSystem(TrialMonitor(settle_time=config.settle_time,
+                                             unknown_hold_time=config.unknown_hold_time))
     for system, name in ((wrist, "human_wrist_source"), (normalizer, "workspace_normalizer"), (gating, "skill_gating"),
-                         (conditioner, "interaction_promp_conditioner"), (source, "joint_trajectory_source")):
+                         (conditioner, "interaction_promp_conditioner"), (source, "joint_trajectory_source"),
+                         (monitor, "trial_monitor")):
         system.set_name(name)
 
     builder.Connect(wrist.GetOutputPort("human_wrist"), normalizer.GetInputPort("human_wrist"))
     builder.Connect(normalizer.GetOutputPort("normalized_wrist"), gating.GetInputPort("normalized_wrist"))
-    builder.Connect(gating.GetOutputPort("component"), conditioner.GetInputPort("component"))
-    builder.Connect(gating.GetOutputPort("observed_motion"), conditioner.GetInputPort("observed_motion"))
+    builder.Connect(gating.GetOutputPort("decision"), conditioner.GetInputPort("decision"))
+    builder.Connect(gating.GetOutputPort("decision"), monitor.GetInputPort("decision"))
+    builder.Connect(conditioner.GetOutputPort("conditioning"), monitor.GetInputPort("conditioning"))
     builder.Connect(conditioner.GetOutputPort("robot_trajectory"), source.GetInputPort("robot_trajectory"))
     builder.Connect(plant.get_state_output_port(iiwa), source.GetInputPort("measured_state"))
     builder.Connect(source.GetOutputPort("desired_state"), controller.get_input_port_desired_state())
@@ -165,10 +177,11 @@ def build_diagram(config: SimConfig, *, library: SkillLibrary, workspace: Worksp
                                                p_WL=scene.robot_base.transform().translation() + [0, 0.25, 0.75]))
         marker.set_name("wrist_marker")
         builder.Connect(wrist.GetOutputPort("human_wrist"), marker.GetInputPort("human_wrist"))
-        builder.Connect(gating.GetOutputPort("component"), marker.GetInputPort("component"))
+        builder.Connect(gating.GetOutputPort("decision"), marker.GetInputPort("decision"))
 
     diagram = builder.Build()
     diagram.set_name("drake_skills_collaboration")
     handles = DiagramHandles(plant, scene_graph, iiwa, plant.GetFrameByName(FLANGE_FRAME, iiwa), controller_plant,
-                             controller, wrist, normalizer, gating, conditioner, source, visualizer, marker, meshcat)
+                             controller, wrist, normalizer, gating, conditioner, source, monitor, visualizer, marker,
+                             meshcat)
     return diagram, handles

@@ -4,9 +4,10 @@ from __future__ import annotations
 import numpy as np
 from pydrake.geometry import Box, Meshcat, Rgba, Sphere
 from pydrake.math import RigidTransform
+from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafSystem
 
-from drake_skills.systems.gating import PENDING, UNKNOWN
+from drake_skills.systems.gating import GatingDecision
 
 #: Meshcat path of the wrist sphere.
 WRIST_PATH = "/drake_skills/human_wrist"
@@ -21,13 +22,13 @@ PALETTE = ((0.10, 0.45, 0.85, 1.0), (0.15, 0.70, 0.25, 1.0), (0.60, 0.25, 0.75, 
            (0.95, 0.45, 0.70, 1.0), (0.30, 0.30, 0.90, 1.0))
 
 
-def decision_rgba(component: int) -> tuple[float, float, float, float]:
+def decision_rgba(decision: GatingDecision) -> tuple[float, float, float, float]:
     """Colour of a decision: grey pending, red unknown, a palette colour per component id."""
-    if component == PENDING:
+    if decision.status == "pending":
         return PENDING_RGBA
-    if component == UNKNOWN:
+    if decision.status == "unknown":
         return UNKNOWN_RGBA
-    return PALETTE[int(component) % len(PALETTE)]
+    return PALETTE[decision.component % len(PALETTE)]
 
 
 class WristMarker(LeafSystem):
@@ -38,7 +39,7 @@ class WristMarker(LeafSystem):
         name: WristMarker
         input_ports:
         - human_wrist
-        - component
+        - decision
         output_ports: []
 
     Parameters
@@ -57,7 +58,7 @@ class WristMarker(LeafSystem):
         super().__init__()
         self._meshcat = meshcat
         self._wrist = self.DeclareVectorInputPort("human_wrist", 3)
-        self._component = self.DeclareVectorInputPort("component", 1)
+        self._decision = self.DeclareAbstractInputPort("decision", AbstractValue.Make(GatingDecision()))
         meshcat.SetObject(WRIST_PATH, Sphere(radius), Rgba(*PENDING_RGBA))
         meshcat.SetObject(LAMP_PATH, Box(0.08, 0.08, 0.08), Rgba(*PENDING_RGBA))
         meshcat.SetTransform(LAMP_PATH, RigidTransform(np.asarray(p_WL, float)))
@@ -68,7 +69,7 @@ class WristMarker(LeafSystem):
         # Without an active recording meshcat ignores time_in_recording and draws live.
         t = context.get_time()
         self._meshcat.SetTransform(WRIST_PATH, RigidTransform(self._wrist.Eval(context)), time_in_recording=t)
-        rgba = list(decision_rgba(int(round(self._component.Eval(context)[0]))))
+        rgba = list(decision_rgba(self._decision.Eval(context)))
         # every frame, so the recording's colour track steps instead of blending between decisions
         self._meshcat.SetProperty(WRIST_PATH, "color", rgba, time_in_recording=t)
         self._meshcat.SetProperty(LAMP_PATH, "color", rgba, time_in_recording=t)

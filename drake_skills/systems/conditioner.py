@@ -9,7 +9,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafSystem, State
 
 from drake_skills.library.incremental import SkillLibrary
-from drake_skills.systems.gating import GATING_PERIOD, ObservedMotion, identity_workspace
+from drake_skills.systems.gating import GATING_PERIOD, GatingDecision, ObservedMotion
 
 log = logging.getLogger(__name__)
 
@@ -51,8 +51,29 @@ class ConditionedTrajectory:
         return (self.component, self.start_time)
 
 
+@dataclass(frozen=True, eq=False)
+class Conditioning:
+    """The conditioner's state and its second output: what it did with this trial's decision.
+
+    Attributes
+    ----------
+    component : int or None
+        The component it conditioned (or tried to); None until it has.
+    trajectory : ConditionedTrajectory or None
+        The result; None before, and after a failure (e.g. the component was
+        deleted between the decision and the conditioning): the robot then holds.
+    """
+
+    component: int | None = None
+    trajectory: ConditionedTrajectory | None = None
+
+    @property
+    def failed(self) -> bool:
+        return self.component is not None and self.trajectory is None
+
+
 def condition_robot(library: SkillLibrary, component: int, motion: ObservedMotion, start_time: float, *,
-                    n_steps: int | None = None, scale: float = 10.0) -> ConditionedTrajectory:
+                    n_steps: int | None = None) -> ConditionedTrajectory:
     """Condition component ``component`` on the observed motion (Eq. 13).
 
     Parameters
@@ -60,20 +81,39 @@ def condition_robot(library: SkillLibrary, component: int, motion: ObservedMotio
     library : SkillLibrary
     component : int
     motion : ObservedMotion
-        Normalized samples relative to the start (Eq. 14 already applied).
+        Samples in the library's normalized units (Eq. 14 already applied).
     start_time : float
         When the robot starts (s).
     n_steps : int, optional
         Samples of the returned trajectory (default: the library's n_samples).
-    scale : float
-        The normalized range of the workspace.
+
+    Raises
+    ------
+    KeyError
+        If ``component`` is not in the library.
     """
-    y = motion.samples
-    mean, cov = library.predict_robot(y, workspace=identity_workspace(y.shape[1], scale), component=int(component),
-                                      n_steps=n_steps)
+    mean, cov = library.predict_robot(motion.samples, normalized=True, component=int(component), n_steps=n_steps)
     std = np.sqrt(np.maximum(np.diagonal(cov, axis1=1, axis2=2), 0.0))
     duration = float(library.component(int(component)).duration)
     return ConditionedTrajectory(int(component), mean, std, duration, float(start_time))
+
+
+def conditioning_step(state: Conditioning, decision: GatingDecision, library: SkillLibrary, time: float, *,
+                      n_steps: int | None = None) -> Conditioning:
+    """Condition once per trial, the first time the decision names a component.
+
+    A failure (bad input, a component deleted meanwhile) is logged and gives a
+    :class:`Conditioning` without trajectory, so the robot holds still.
+    """
+    if state.component is not None or decision.component is None:
+        return state
+    k = int(decision.component)
+    try:
+        traj = condition_robot(library, k, decision.motion, time, n_steps=n_steps)
+    except (KeyError, ValueError) as exc:
+        log.warning("cannot condition component %d: %s; the robot holds still", k, exc)
+        traj = None
+    return Conditioning(k, traj)
 
 
 class InteractionProMPConditioner(LeafSystem):
@@ -83,61 +123,62 @@ class InteractionProMPConditioner(LeafSystem):
 
         name: InteractionProMPConditioner
         input_ports:
-        - component
-        - observed_motion
+        - decision
         output_ports:
         - robot_trajectory
+        - conditioning
 
-    ``robot_trajectory`` is a :class:`ConditionedTrajectory`, or None while
-    the decision is pending or unknown.  It is computed in an update (every
-    1/64 s while no trajectory is held) the first time ``component`` is a
-    valid id, cached in abstract state, and starts at that update's time.
-    A context reset starts a new trial.
+    ``decision`` is the gating's :class:`~drake_skills.systems.gating.GatingDecision`.
+    ``robot_trajectory`` is a :class:`ConditionedTrajectory`, or None while the
+    decision is pending or unknown (or conditioning failed). It is computed in an
+    update (every 1/64 s until done) the first time the decision names a
+    component, cached in abstract state (:class:`Conditioning`, the
+    ``conditioning`` output) and starts at that update's time. A context reset
+    starts a new trial.
 
     Parameters
     ----------
     library : SkillLibrary
     n_steps : int, optional
         Samples of the conditioned trajectory.
-    scale : float
-        The normalized range of the workspace (Eq. 14).
     """
 
-    def __init__(self, library: SkillLibrary, *, n_steps: int | None = None, scale: float = 10.0):
+    def __init__(self, library: SkillLibrary, *, n_steps: int | None = None):
         super().__init__()
         if not isinstance(library, SkillLibrary):
             raise ValueError(f"library must be a SkillLibrary, got {type(library).__name__}")
         self._library = library
         self._n_steps = n_steps
-        self._scale = float(scale)
-        self._component = self.DeclareVectorInputPort("component", 1)
-        self._motion = self.DeclareAbstractInputPort("observed_motion", AbstractValue.Make(ObservedMotion()))
-        # [trajectory or None, component it was made for or None]
-        self._state = self.DeclareAbstractState(AbstractValue.Make((None, None)))
+        self._decision = self.DeclareAbstractInputPort("decision", AbstractValue.Make(GatingDecision()))
+        self._state = self.DeclareAbstractState(AbstractValue.Make(Conditioning()))
         self.DeclarePeriodicUnrestrictedUpdateEvent(CONDITIONER_PERIOD, 0.0, self._update)
         self.DeclareForcedUnrestrictedUpdateEvent(self._update)
+        deps = {self.abstract_state_ticket(self._state)}
         self._out = self.DeclareAbstractOutputPort(
-            "robot_trajectory", lambda: AbstractValue.Make(None), self._calc_trajectory,
-            prerequisites_of_calc={self.abstract_state_ticket(self._state)})
+            "robot_trajectory", lambda: AbstractValue.Make(None), self._calc_trajectory, prerequisites_of_calc=deps)
+        self._conditioning = self.DeclareAbstractOutputPort(
+            "conditioning", lambda: AbstractValue.Make(Conditioning()), self._calc_conditioning,
+            prerequisites_of_calc=deps)
+
+    def conditioning(self, context: Context) -> Conditioning:
+        """The conditioner's state in ``context``."""
+        return context.get_abstract_state(self._state).get_value()
 
     def trajectory(self, context: Context) -> ConditionedTrajectory | None:
         """The cached trajectory in ``context``, or None."""
-        return context.get_abstract_state(self._state).get_value()[0]
+        return self.conditioning(context).trajectory
 
     def _update(self, context: Context, state: State) -> None:
-        _, done_for = context.get_abstract_state(self._state).get_value()
-        if done_for is not None:
+        old = self.conditioning(context)
+        if old.component is not None:
             return  # one decision per trial: computed once
-        k = int(round(self._component.Eval(context)[0]))
-        if k < 0:
-            return
-        try:
-            traj = condition_robot(self._library, k, self._motion.Eval(context), context.get_time(),
-                                   n_steps=self._n_steps, scale=self._scale)
-        except (KeyError, ValueError) as exc:  # e.g. the component was deleted meanwhile
-            log.warning("cannot condition component %d: %s", k, exc)
-            traj = None
-        state.get_mutable_abstract_state(self._state).set_value((traj, k))
+        new = conditioning_step(old, self._decision.Eval(context), self._library, context.get_time(),
+                                n_steps=self._n_steps)
+        if new is not old:
+            state.get_mutable_abstract_state(self._state).set_value(new)
 
     def _calc_trajectory(self, context: Context, output: AbstractValue) -> None:
         output.set_value(self.trajectory(context))
+
+    def _calc_conditioning(self, context: Context, output: AbstractValue) -> None:
+        output.set_value(self.conditioning(context))

@@ -6,20 +6,15 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
+from pydrake.systems.framework import Context, LeafSystem, State
 
 from drake_skills.library.incremental import SkillLibrary
 from drake_skills.systems.decision_rule import DecisionRule
-from drake_skills.data.workspace import Workspace
 
 log = logging.getLogger(__name__)
 
 #: Period of the sampling and decision update (s); exact in binary.
 GATING_PERIOD = 1.0 / 64.0
-#: Value of the "component" output while the motion is still being observed.
-PENDING = -2
-#: Value of the "component" output when the motion matches no skill.
-UNKNOWN = -1
 
 
 @dataclass(frozen=True, eq=False)
@@ -50,14 +45,14 @@ class ObservedMotion:
 
 @dataclass(frozen=True, eq=False)
 class GatingDecision:
-    """The gating's state: what was observed and, once decided, the decision.
+    """The gating's state and output: what was observed and, once decided, the decision.
 
     Attributes
     ----------
     motion : ObservedMotion
     decided : bool
-    component : int
-        Component id, ``UNKNOWN`` (-1) or ``PENDING`` (-2).
+    component : int or None
+        The chosen component id; None while pending and for "unknown".
     responsibilities : dict
         Component id -> p(k | w_h) (Eq. 5) at the decision; empty before.
     time : float
@@ -66,14 +61,16 @@ class GatingDecision:
 
     motion: ObservedMotion = field(default_factory=ObservedMotion)
     decided: bool = False
-    component: int = PENDING
+    component: int | None = None
     responsibilities: dict = field(default_factory=dict)
     time: float = float("nan")
 
-
-def identity_workspace(dim: int, scale: float = 10.0) -> Workspace:
-    """A workspace whose normalization is the identity (for already normalized samples)."""
-    return Workspace(np.zeros(dim), np.full(dim, float(scale)), float(scale))
+    @property
+    def status(self) -> str:
+        """``"pending"`` (still observing), ``"unknown"`` or ``"skill"``."""
+        if not self.decided:
+            return "pending"
+        return "unknown" if self.component is None else "skill"
 
 
 def motion_is_over(motion: ObservedMotion, rule: DecisionRule) -> bool:
@@ -107,7 +104,7 @@ def should_decide(motion: ObservedMotion, rule: DecisionRule) -> bool:
     return elapsed >= rule.timeout - 1e-12 or motion_is_over(motion, rule)
 
 
-def recognize_motion(library: SkillLibrary, motion: ObservedMotion, scale: float = 10.0) -> tuple[int, dict]:
+def recognize_motion(library: SkillLibrary, motion: ObservedMotion) -> tuple[int | None, dict]:
     """Which component explains the motion (Eq. 12)?
 
     Parameters
@@ -115,36 +112,35 @@ def recognize_motion(library: SkillLibrary, motion: ObservedMotion, scale: float
     library : SkillLibrary
         May be empty (then the answer is unknown).
     motion : ObservedMotion
-        Normalized samples relative to the start (Eq. 14 already applied).
-    scale : float
-        The normalized range of the workspace the samples were normalized with.
+        Samples in the library's normalized units (Eq. 14 applied by the
+        normalizer): the library only resamples them.
 
     Returns
     -------
-    component : int
-        Component id, or ``UNKNOWN``.
+    component : int or None
+        Component id, or None for unknown.
     responsibilities : dict
         Component id -> responsibility.
     """
     if library.n_components == 0 or motion.n < 2:
-        return UNKNOWN, {}
+        return None, {}
     y = motion.samples
     if float(np.max(np.linalg.norm(y - y[0], axis=1))) <= 0.0:
-        return UNKNOWN, {}
-    rec = library.recognize(y, workspace=identity_workspace(y.shape[1], scale))
+        return None, {}
+    rec = library.recognize(y, normalized=True)
     resp = {int(k): float(r) for k, r in zip(rec.ids, rec.responsibilities)}
-    return (UNKNOWN if rec.component is None else int(rec.component)), resp
+    return (None if rec.component is None else int(rec.component)), resp
 
 
 def gating_step(state: GatingDecision, time: float, sample: np.ndarray, library: SkillLibrary,
-                rule: DecisionRule, scale: float = 10.0) -> GatingDecision:
+                rule: DecisionRule) -> GatingDecision:
     """One update: record the sample and, when it is time, decide (once)."""
     if state.decided:
         return state
     motion = state.motion.append(time, sample)
     if not should_decide(motion, rule):
         return GatingDecision(motion)
-    component, resp = recognize_motion(library, motion, scale)
+    component, resp = recognize_motion(library, motion)
     log.debug("gating decided %s at t=%.3f after %d samples", component, time, motion.n)
     return GatingDecision(motion, True, component, resp, float(time))
 
@@ -158,17 +154,15 @@ class SkillGating(LeafSystem):
         input_ports:
         - normalized_wrist
         output_ports:
-        - component
-        - responsibilities
-        - observed_motion
+        - decision
 
     Every 1/64 s the input is appended to the observed motion (abstract
-    state).  When the motion is over (:func:`motion_is_over`) or at the
-    configured decision time, ``library.recognize`` is called once.
-    ``component`` is then the chosen id, ``-1`` for unknown, and ``-2``
-    while undecided; ``responsibilities`` is a dict id -> p(k | w_h);
-    ``observed_motion`` (an :class:`ObservedMotion`) the samples the decision
-    was made on.  A context reset starts a new trial.
+    state). When the motion is over (:func:`motion_is_over`), at the rule's
+    decision time or at its timeout, ``library.recognize`` is called once.
+    ``decision`` is the :class:`GatingDecision`: its ``status`` ("pending",
+    "unknown", "skill"), the chosen component id (an int, None for unknown),
+    the responsibilities and the samples the decision was made on. A context
+    reset starts a new trial.
 
     Parameters
     ----------
@@ -177,32 +171,23 @@ class SkillGating(LeafSystem):
     rule : DecisionRule, optional
     dim : int
         Dimension of the wrist.
-    scale : float
-        The normalized range of the workspace (Eq. 14; 10 in the paper).
     """
 
-    def __init__(self, library: SkillLibrary, rule: DecisionRule | None = None, *, dim: int = 3,
-                 scale: float = 10.0):
+    def __init__(self, library: SkillLibrary, rule: DecisionRule | None = None, *, dim: int = 3):
         super().__init__()
         if not isinstance(library, SkillLibrary):
             raise ValueError(f"library must be a SkillLibrary, got {type(library).__name__}")
-        self._library = library
         if rule is not None and not isinstance(rule, DecisionRule):
             raise ValueError(f"rule must be a DecisionRule, got {type(rule).__name__}")
+        self._library = library
         self._rule = replace(rule) if rule is not None else DecisionRule()  # our own copy
-        self._scale = float(scale)
         self._wrist = self.DeclareVectorInputPort("normalized_wrist", dim)
         self._state = self.DeclareAbstractState(AbstractValue.Make(GatingDecision(
             ObservedMotion(np.zeros(0), np.zeros((0, dim))))))
         self.DeclarePeriodicUnrestrictedUpdateEvent(GATING_PERIOD, 0.0, self._update)
         self.DeclareForcedUnrestrictedUpdateEvent(self._update)
-        self._component = self.DeclareVectorOutputPort(
-            "component", 1, self._calc_component, prerequisites_of_calc={self.abstract_state_ticket(self._state)})
-        self._responsibilities = self.DeclareAbstractOutputPort(
-            "responsibilities", lambda: AbstractValue.Make(dict()), self._calc_responsibilities,
-            prerequisites_of_calc={self.abstract_state_ticket(self._state)})
-        self._motion = self.DeclareAbstractOutputPort(
-            "observed_motion", lambda: AbstractValue.Make(ObservedMotion()), self._calc_motion,
+        self._decision = self.DeclareAbstractOutputPort(
+            "decision", lambda: AbstractValue.Make(GatingDecision()), self._calc_decision,
             prerequisites_of_calc={self.abstract_state_ticket(self._state)})
 
     @property
@@ -221,15 +206,8 @@ class SkillGating(LeafSystem):
         old = self.decision(context)
         if old.decided:
             return
-        new = gating_step(old, context.get_time(), self._wrist.Eval(context), self._library, self._rule,
-                          self._scale)
+        new = gating_step(old, context.get_time(), self._wrist.Eval(context), self._library, self._rule)
         state.get_mutable_abstract_state(self._state).set_value(new)
 
-    def _calc_component(self, context: Context, output: BasicVector) -> None:
-        output.SetAtIndex(0, float(self.decision(context).component))
-
-    def _calc_responsibilities(self, context: Context, output: AbstractValue) -> None:
-        output.set_value(dict(self.decision(context).responsibilities))
-
-    def _calc_motion(self, context: Context, output: AbstractValue) -> None:
-        output.set_value(self.decision(context).motion)
+    def _calc_decision(self, context: Context, output: AbstractValue) -> None:
+        output.set_value(self.decision(context))

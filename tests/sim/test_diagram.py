@@ -14,7 +14,6 @@ from drake_skills.sim.config import SimConfig
 from drake_skills.sim.demo import CollaborationSim
 from drake_skills.sim.diagram import build_diagram
 from drake_skills.sim.models import HOME_Q, IIWA7_JOINT_LIMITS
-from drake_skills.systems.gating import PENDING, UNKNOWN
 
 CHROMIUM = "/usr/bin/chromium"
 #: Robot link colour of models/iiwa7/iiwa7.sdf (diffuse 1.0 0.42 0.04), as 8-bit RGB, and a tolerance.
@@ -44,15 +43,17 @@ def test_diagram_builds_and_simulates_a_short_run(subject):
     diagram, h = build_diagram(SimConfig(), library=SkillLibrary(), workspace=subject.workspace())
     names = {diagram.GetSubsystemByName(n).get_name() for n in
              ("human_wrist_source", "workspace_normalizer", "skill_gating", "interaction_promp_conditioner",
-              "joint_trajectory_source", "inverse_dynamics_controller")}
-    assert len(names) == 6
+              "joint_trajectory_source", "inverse_dynamics_controller", "trial_monitor")}
+    assert len(names) == 7
     assert h.plant.time_step() == 1e-3 and h.controller_plant.num_positions() == 7
     simulator = Simulator(diagram)
     simulator.AdvanceTo(0.25)
     ctx = simulator.get_context()
     q = h.plant.GetPositions(h.plant.GetMyContextFromRoot(ctx), h.iiwa)
     np.testing.assert_allclose(q, HOME_Q, atol=1e-6)
-    assert h.gating.GetOutputPort("component").Eval(h.gating.GetMyContextFromRoot(ctx))[0] == PENDING
+    assert h.gating.GetOutputPort("decision").Eval(h.gating.GetMyContextFromRoot(ctx)).status == "pending"
+    assert h.trial_monitor.GetOutputPort("trial_status").Eval(h.trial_monitor.GetMyContextFromRoot(ctx)).phase == \
+        "observing"
 
 
 @pytest.mark.parametrize("task", ["tomato", "standup"])
@@ -72,9 +73,26 @@ def test_unknown_keeps_the_robot_still(subject):
     sim = CollaborationSim(SimConfig(unknown_hold_time=1.0), SkillLibrary(), subject.workspace())
     demo = subject.by_task("bowl")[0]
     outcome, log = sim.run_trial(demo)
-    assert outcome["component"] == UNKNOWN and not outcome["executed"]
+    assert outcome.component is None and not outcome.executed
     assert np.abs(log.q - log.q[0]).max() < 1e-3
     assert log.times[-1] - log.times[0] > demo.duration
+
+
+def test_taught_library_answers_unknown_for_an_untaught_task_and_the_trial_ends_after_the_hold(subject):
+    """Board, tomato, bowl and dressing taught (4 demonstrations each), then a standup motion: unknown."""
+    config = SimConfig(unknown_hold_time=0.75)
+    sim = CollaborationSim(config, SkillLibrary(), subject.workspace())
+    for k in range(4):
+        for task in ("board", "tomato", "bowl", "dressing"):
+            sim.teach(subject.by_task(task)[k])
+    assert sim.library.n_components >= 4
+    outcome, log = sim.run_trial(subject.by_task("standup")[4])
+    assert outcome.component is None and not outcome.executed
+    assert np.abs(log.q - log.q[0]).max() < 1e-3  # the robot held still
+    # the Diagram's trial_status ended the trial: decision + hold time, on the log grid
+    assert outcome.end_time == pytest.approx(outcome.start_time + outcome.decision_time + 0.75)
+    known, _ = sim.run_trial(subject.by_task("bowl")[4])  # a taught task is still recognized
+    assert known.component is not None and sim.label_of(known.component) == "bowl"
 
 
 def test_demo_command_writes_a_recording_that_renders_the_robot(tmp_path):

@@ -4,13 +4,13 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 from drake_skills import SkillLibrary
-from drake_skills.systems.gating import (PENDING, UNKNOWN, DecisionRule, GatingDecision, ObservedMotion, SkillGating,
-                                         gating_step, motion_is_over, recognize_motion, should_decide)
+from drake_skills.systems.decision_rule import DecisionRule
+from drake_skills.systems.gating import (GatingDecision, ObservedMotion, SkillGating, gating_step, motion_is_over,
+                                         recognize_motion, should_decide)
 from drake_skills.systems.normalizer import WorkspaceNormalizer
 from drake_skills.systems.wrist_source import HumanWristSource, WristTrial
-from drake_skills.systems.gating import identity_workspace
 
-WORKSPACE = identity_workspace(3)  # the synthetic demos are in normalized units
+from synthetic import WORKSPACE  # the synthetic demos are in normalized units
 
 RULE = DecisionRule()
 
@@ -39,15 +39,35 @@ def test_decision_time_overrides_stillness():
     assert should_decide(_motion(moving[:33]), rule)
 
 
+def test_timeout_decides_a_motion_that_never_stops_after_the_timeout_and_not_before():
+    rule = DecisionRule(timeout=0.5)
+    moving = np.outer(np.linspace(0, 40, 200), [1, 0, 0])  # never still
+    assert not any(should_decide(_motion(moving[:n]), rule) for n in range(1, 32))  # 31 samples: 0.47 s
+    assert should_decide(_motion(moving[:33]), rule)  # 0.5 s after the first sample
+    assert not any(should_decide(_motion(moving[:n]), DecisionRule()) for n in range(1, 200))
+
+
+def test_gating_decides_at_the_timeout(library, demo):
+    y = WORKSPACE.normalize(demo.human)
+    wobble = y[-1] + np.outer(np.sin(np.arange(400)), [0.5, 0, 0])  # the hand never comes to rest
+    state, rule = GatingDecision(), DecisionRule(timeout=2.0)
+    for i, p in enumerate(np.vstack([y, wobble])):
+        state = gating_step(state, i / 64, p, library, rule)
+        if state.decided:
+            break
+    assert state.decided and state.time == pytest.approx(2.0)
+
+
 def test_empty_library_answers_unknown():
-    assert recognize_motion(SkillLibrary(), _motion(np.outer(np.linspace(0, 3, 9), [1, 1, 0])))[0] == UNKNOWN
+    k, resp = recognize_motion(SkillLibrary(), _motion(np.outer(np.linspace(0, 3, 9), [1, 1, 0])))
+    assert k is None and resp == {}
 
 
 def test_recognize_motion_finds_the_demonstrated_skill(library, demo):
     y = WORKSPACE.normalize(demo.human)
     k, resp = recognize_motion(library, _motion(y))
     assert k == library.recognize(demo.human, workspace=WORKSPACE).component
-    assert k >= 0 and resp[k] > 0.9
+    assert isinstance(k, int) and resp[k] > 0.9
 
 
 def test_gating_step_decides_once_and_then_freezes(library, demo):
@@ -57,15 +77,15 @@ def test_gating_step_decides_once_and_then_freezes(library, demo):
         state = gating_step(state, i / 64, p, library, RULE)
         if state.decided:
             break
-    assert state.decided and state.component >= 0
+    assert state.decided and state.status == "skill" and isinstance(state.component, int)
     assert gating_step(state, 99.0, np.ones(3), library, RULE) is state
 
 
 def test_outputs_pending_then_the_component_after_forced_updates(library, demo):
     gating = SkillGating(library)
     context = gating.CreateDefaultContext()
-    assert gating.GetOutputPort("component").Eval(context)[0] == PENDING
-    assert gating.GetOutputPort("responsibilities").Eval(context) == {}
+    port = gating.GetOutputPort("decision")
+    assert port.Eval(context).status == "pending" and port.Eval(context).responsibilities == {}
     y = WORKSPACE.normalize(demo.human)
     scratch = context.Clone()
     samples = np.vstack([y[::2], np.repeat(y[-1:], 40, axis=0)])
@@ -74,10 +94,11 @@ def test_outputs_pending_then_the_component_after_forced_updates(library, demo):
         gating.GetInputPort("normalized_wrist").FixValue(context, p)
         gating.CalcForcedUnrestrictedUpdate(context, scratch.get_mutable_state())
         context.SetAbstractState(0, scratch.get_abstract_state(0).get_value())
-    k = gating.GetOutputPort("component").Eval(context)[0]
-    assert k == library.recognize(demo.human, workspace=WORKSPACE).component
-    assert sum(gating.GetOutputPort("responsibilities").Eval(context).values()) == pytest.approx(1.0)
-    assert gating.GetOutputPort("observed_motion").Eval(context).n < len(samples)  # stopped accumulating
+    decision = port.Eval(context)
+    assert decision.component == library.recognize(demo.human, workspace=WORKSPACE).component
+    assert type(decision.component) is int  # an integer id travels, no float to round
+    assert sum(decision.responsibilities.values()) == pytest.approx(1.0)
+    assert decision.motion.n < len(samples)  # stopped accumulating
 
 
 def test_replayed_motion_is_decided_in_a_simulation(library, demo):

@@ -3,10 +3,12 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 from drake_skills.systems.conditioner import ConditionedTrajectory, InteractionProMPConditioner
-from drake_skills.systems.gating import SkillGating, identity_workspace
+from drake_skills.systems.gating import SkillGating
 from drake_skills.systems.normalizer import WorkspaceNormalizer
 from drake_skills.systems.trajectory_source import JointTrajectorySource, build_plan, desired_at, plan_knots
 from drake_skills.systems.wrist_source import HumanWristSource, WristTrial
+
+from synthetic import WORKSPACE
 
 LOWER, UPPER = -np.full(7, 2.0), np.full(7, 2.0)
 HOME = np.array([0.0, 0.3, 0.0, -1.2, 0.0, 0.6, 0.0])
@@ -73,7 +75,7 @@ def test_holds_the_measured_pose_until_a_trajectory_arrives():
 
 
 def test_whole_chain_turns_a_replayed_motion_into_a_joint_plan(library, demo):
-    ws = identity_workspace(3)
+    ws = WORKSPACE
     builder = DiagramBuilder()
     wrist = builder.AddSystem(HumanWristSource(WristTrial(demo.t, demo.human)))
     norm = builder.AddSystem(WorkspaceNormalizer(ws))
@@ -82,8 +84,7 @@ def test_whole_chain_turns_a_replayed_motion_into_a_joint_plan(library, demo):
     source = builder.AddSystem(JointTrajectorySource(LOWER, UPPER, np.zeros(7)))
     builder.Connect(wrist.GetOutputPort("human_wrist"), norm.GetInputPort("human_wrist"))
     builder.Connect(norm.GetOutputPort("normalized_wrist"), gating.GetInputPort("normalized_wrist"))
-    builder.Connect(gating.GetOutputPort("component"), cond.GetInputPort("component"))
-    builder.Connect(gating.GetOutputPort("observed_motion"), cond.GetInputPort("observed_motion"))
+    builder.Connect(gating.GetOutputPort("decision"), cond.GetInputPort("decision"))
     builder.Connect(cond.GetOutputPort("robot_trajectory"), source.GetInputPort("robot_trajectory"))
     builder.ExportInput(source.GetInputPort("measured_state"), "measured_state")
     diagram = builder.Build()
