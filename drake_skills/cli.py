@@ -34,10 +34,9 @@ def build_parser() -> argparse.ArgumentParser:
     for name in COMMAND_MODULES:
         try:
             module = importlib.import_module(f"drake_skills.commands.{name}")
-        except ModuleNotFoundError as exc:
-            if exc.name == f"drake_skills.commands.{name}":
-                continue  # command not built yet
-            raise
+        except Exception as exc:  # a broken command is an error, never a silently missing command
+            raise RuntimeError(f"drake-skills: the command module drake_skills.commands.{name} failed to import "
+                               f"({type(exc).__name__}: {exc})") from exc
         module.register(sub)
     return parser
 

@@ -23,5 +23,3 @@ def synthetic_demo(task: int, rng, *, T: int = 120, noise: float = 0.15, robot: 
     if robot:
         q = np.outer(s, np.r_[0.1 * goal, 0.05 * goal[:2], 0.3 * task, -0.2]) + 0.001 * rng.standard_normal((T, 7))
     return Demonstration(t=t, human=human, robot=q, task=str(task), name=f"synthetic_{task}")
-
-

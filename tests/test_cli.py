@@ -112,15 +112,16 @@ def test_missing_directory_is_a_clear_error(tmp_path, capsys):
     assert "does not exist" in capsys.readouterr().err
 
 
-LIBRARY_COMMANDS = [["demo"], ["learn", "DIR"], ["bench"]]
+LIBRARY_COMMANDS = [["demo"], ["learn", "DIR"], ["bench"], ["eval", "letters"], ["eval", "salad"],
+                    ["eval", "sensitivity"]]
 
 
-@pytest.mark.parametrize("command", LIBRARY_COMMANDS, ids=lambda c: c[0])
+@pytest.mark.parametrize("command", LIBRARY_COMMANDS, ids=lambda c: " ".join(c[:2]))
 def test_every_command_that_builds_a_library_takes_a_config(command, capsys):
     args = build_parser().parse_args(command + ["--config", "c.yaml"])
     assert str(args.config) == "c.yaml"
     with pytest.raises(SystemExit):
-        build_parser().parse_args(command[:1] + ["--help"])
+        build_parser().parse_args(command + ["--help"])
     assert "LibraryConfig" in capsys.readouterr().out.replace("\n", " ")
 
 
@@ -139,3 +140,11 @@ def test_a_bad_config_is_an_error_naming_the_file(dataset, tmp_path, capsys):
     assert main(["learn", str(dataset / "train"), "--out", str(tmp_path / "x.npz"), "--config", str(cfg)]) == 1
     err = capsys.readouterr().err
     assert "bad.yaml" in err and "ridge" in err, err
+
+
+def test_a_command_that_fails_to_import_is_a_loud_error(monkeypatch):
+    import drake_skills.cli as cli
+
+    monkeypatch.setattr(cli, "COMMAND_MODULES", cli.COMMAND_MODULES + ["no_such_command"])
+    with pytest.raises(RuntimeError, match="drake_skills.commands.no_such_command failed to import"):
+        cli.build_parser()

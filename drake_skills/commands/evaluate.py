@@ -4,11 +4,12 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 
 def register(sub) -> None:
-    from drake_skills.commands import add_common
+    from drake_skills.commands import add_common, add_config
     from drake_skills.evaluation.common import available_workers
 
     p = sub.add_parser("eval", help="run the paper's experiments (letters, salad) and write tables and plots",
@@ -28,6 +29,7 @@ def register(sub) -> None:
         q.add_argument("--workers", type=int, default=available_workers(),
                        help="processes for the trials (default: available cores); results do not depend on it")
         q.add_argument("--no-progress", action="store_true", help="no progress bars")
+        add_config(q)  # the library settings of every library the experiment learns
 
     q = esub.add_parser("letters", help="Sec. 4.1: incremental library vs batch EM vs labeled ML on LASA letters")
     common(q, "letters", 100)
@@ -56,36 +58,40 @@ def _finish(rep, out: Path, t0: float) -> int:
     return 0
 
 
+def _library(args: argparse.Namespace):
+    """The LibraryConfig of ``--config`` (the defaults without it)."""
+    from drake_skills.sim.config import load_library_config
+
+    return load_library_config(args.config)
+
+
 def run_letters(args: argparse.Namespace) -> int:
     from drake_skills.evaluation.common import use_agg
     from drake_skills.evaluation.letters import LettersSettings, evaluate_letters
 
     use_agg()
     t0 = time.time()
-    s = LettersSettings(seed=args.seed)
+    kw = dict(seed=args.seed, library=_library(args))
     if args.quick:
-        s.trials, s.kl_samples, s.em_n_init = 4, 500, 2
+        kw.update(trials=4, kl_samples=500, em_n_init=2)
     if args.trials is not None:
-        s.trials = args.trials
-    rep = evaluate_letters(s, workers=args.workers, progress=not args.no_progress)
+        kw["trials"] = args.trials
+    rep = evaluate_letters(LettersSettings(**kw), workers=args.workers, progress=not args.no_progress)
     rep.summary["command"] = " ".join(["drake-skills", "eval", "letters"] + sys.argv[3:])
     return _finish(rep, args.out, t0)
 
 
 def run_salad(args: argparse.Namespace) -> int:
     from drake_skills.evaluation.common import use_agg
-    from drake_skills.evaluation.salad import SaladSettings, evaluate_salad
+    from drake_skills.evaluation.salad import evaluate_salad
+    from drake_skills.evaluation.salad_data import SaladSettings
 
     use_agg()
     t0 = time.time()
-    s = SaladSettings.quick(seed=args.seed) if args.quick else SaladSettings(seed=args.seed)
-    if args.trials is not None:
-        s.trials = args.trials
-    if args.subjects is not None:
-        s.n_subjects = args.subjects
-    if args.demos is not None:
-        s.n_demos = args.demos
-    s.data_seed = args.data_seed
+    base = SaladSettings.quick(seed=args.seed) if args.quick else SaladSettings(seed=args.seed)
+    overrides = {"trials": args.trials, "n_subjects": args.subjects, "n_demos": args.demos}
+    s = replace(base, data_seed=args.data_seed, library=_library(args),
+                **{k: v for k, v in overrides.items() if v is not None})  # validated again
     rep = evaluate_salad(s, workers=args.workers, progress=not args.no_progress, cache_dir=args.out / "cache")
     rep.summary["command"] = " ".join(["drake-skills", "eval", "salad"] + sys.argv[3:])
     return _finish(rep, args.out, t0)
@@ -95,13 +101,9 @@ def run_sensitivity(args: argparse.Namespace) -> int:
     from drake_skills.evaluation.sensitivity import SensitivitySettings, evaluate_sensitivity
 
     t0 = time.time()
-    s = SensitivitySettings.quick(seed=args.seed) if args.quick else SensitivitySettings(seed=args.seed)
-    if args.trials is not None:
-        s.letter_orders = args.trials
-    if args.splits is not None:
-        s.salad_splits = args.splits
-    if s.letter_orders < 1 or s.salad_splits < 1:
-        raise SystemExit("drake-skills eval sensitivity: --trials and --splits must be >= 1")
+    base = SensitivitySettings.quick(seed=args.seed) if args.quick else SensitivitySettings(seed=args.seed)
+    overrides = {"letter_orders": args.trials, "salad_splits": args.splits}
+    s = replace(base, library=_library(args), **{k: v for k, v in overrides.items() if v is not None})
     rep = evaluate_sensitivity(s, workers=args.workers, progress=not args.no_progress,
                                cache_dir=args.out / "cache")
     rep.summary["command"] = " ".join(["drake-skills", "eval", "sensitivity"] + sys.argv[3:])

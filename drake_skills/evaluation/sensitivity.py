@@ -18,14 +18,19 @@ and lower the gating floor and initial covariance that it then needs.
 from __future__ import annotations
 
 from collections import Counter
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
 
-from drake_skills.evaluation.common import EvalReport, Table, run_trials
-from drake_skills.evaluation.salad import (CORRECT, UNKNOWN, WRONG, LabeledLibrary, SaladSettings, _rng,
-                                           load_salad_data)
+from drake_skills.data.demonstration import Demonstration
+from drake_skills.data.lasa import DEFAULT_LETTERS, lasa_workspace, load_lasa
+from drake_skills.data.workspace import Workspace
+from drake_skills.evaluation.common import EvalReport, Table, run_trials, stream_rng
+from drake_skills.evaluation.labeled import CORRECT, UNKNOWN, WRONG, LabeledLibrary
+from drake_skills.evaluation.salad_data import SaladSettings, load_salad_data
+from drake_skills.library.config import LibraryConfig
+from drake_skills.scenario.salad import SubjectData
 
 STREAM_LETTERS, STREAM_SALAD = 31, 32
 
@@ -59,6 +64,30 @@ class SensitivitySettings:
     data_seed: int = 0
     #: Experiment seed.
     seed: int = 0
+    #: The configuration the overrides apply to ("default" is this one).
+    library: LibraryConfig = field(default_factory=LibraryConfig)
+
+    def __post_init__(self):
+        if not isinstance(self.library, LibraryConfig):
+            raise ValueError(f"SensitivitySettings.library must be a LibraryConfig, got {type(self.library).__name__}")
+        if not self.configs:
+            raise ValueError("SensitivitySettings.configs: no configurations to compare")
+        for overrides in self.configs.values():
+            self.config(overrides)  # bad overrides fail here, before any work
+        for name in ("letter_orders", "salad_splits", "n_subjects", "n_demos"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or int(v) != v or v < 1:
+                raise ValueError(f"SensitivitySettings.{name} must be an integer >= 1, got {v!r}")
+        if not 1 <= self.n_train < self.n_demos:
+            raise ValueError(f"SensitivitySettings.n_train must be in [1, n_demos), got {self.n_train} of "
+                             f"{self.n_demos}")
+
+    def config(self, overrides: dict) -> LibraryConfig:
+        """``library`` with ``overrides``; an unknown field raises ``ValueError`` naming it."""
+        unknown = sorted(set(overrides) - {f.name for f in fields(LibraryConfig)})
+        if unknown:
+            raise ValueError(f"unknown LibraryConfig fields: {unknown}")
+        return replace(self.library, **overrides)
 
     @classmethod
     def quick(cls, seed: int = 0) -> "SensitivitySettings":
@@ -67,63 +96,69 @@ class SensitivitySettings:
                    salad_splits=1, n_subjects=2, n_demos=4, n_train=3, seed=seed)
 
 
-def _config(overrides: dict):
-    from drake_skills import LibraryConfig
+@dataclass(frozen=True, eq=False)
+class SensitivityContext:
+    """What every trial reads: the settings, the letters and their workspace, the salad subjects."""
 
-    return LibraryConfig.from_dict(dict(overrides))  # unknown fields: ValueError naming them
+    settings: SensitivitySettings
+    letters: tuple[Demonstration, ...]
+    letters_ws: Workspace
+    shapes: tuple[str, ...]
+    salad: tuple[SubjectData, ...]
 
 
-def letters_order(ctx: dict, item: tuple) -> bool:
+@dataclass(frozen=True)
+class SplitResult:
+    """One salad split: fractions of the test motions and the library's size."""
+
+    correct: float
+    wrong: float
+    unknown: float
+    components: int
+
+
+def letters_order(ctx: SensitivityContext, item: tuple) -> bool:
     """One random order of all letters: does it end with one component per shape?"""
     name, order = item
-    demos, ws = ctx["letters"], ctx["letters_ws"]
-    lab = LabeledLibrary(_config(ctx["settings"].configs[name]))
-    rng = _rng(ctx["settings"].seed, STREAM_LETTERS, order)
+    demos, ws = ctx.letters, ctx.letters_ws
+    lab = LabeledLibrary(ctx.settings.config(ctx.settings.configs[name]))
+    rng = stream_rng(ctx.settings.seed, STREAM_LETTERS, order)
     for i in rng.permutation(len(demos)):
         lab.teach(demos[i], ws)
     labels = [lab.label_of(c.id) for c in lab.library.components]
-    return len(labels) == len(ctx["shapes"]) and set(labels) == set(ctx["shapes"])
+    return len(labels) == len(ctx.shapes) and set(labels) == set(ctx.shapes)
 
 
-def salad_split(ctx: dict, item: tuple) -> dict:
+def salad_split(ctx: SensitivityContext, item: tuple) -> SplitResult:
     """One train/test split of one subject: outcome counts and the number of components."""
     name, subject, split = item
-    s: SensitivitySettings = ctx["settings"]
-    data = ctx["salad"][subject - 1]
+    s = ctx.settings
+    data = ctx.salad[subject - 1]
     ws = data.workspace()
-    rng = _rng(s.seed, STREAM_SALAD, subject, split)
+    rng = stream_rng(s.seed, STREAM_SALAD, subject, split)
     train, test = [], []
     for task in sorted({d.task for d in data.demos}):
         ds = data.by_task(task)
         p = rng.permutation(len(ds))
         train += [ds[i] for i in p[:s.n_train]]
         test += [ds[i] for i in p[s.n_train:]]
-    lab = LabeledLibrary(_config(s.configs[name]))
+    lab = LabeledLibrary(s.config(s.configs[name]))
     for i in rng.permutation(len(train)):
         lab.teach(train[i], ws)
     counts = Counter(lab.classify(d.human, d.task, ws)[0] for d in test)
     n = max(len(test), 1)
-    return {"correct": counts[CORRECT] / n, "wrong": counts[WRONG] / n, "unknown": counts[UNKNOWN] / n,
-            "components": lab.library.n_components}
+    return SplitResult(counts[CORRECT] / n, counts[WRONG] / n, counts[UNKNOWN] / n, lab.library.n_components)
 
 
 def evaluate_sensitivity(settings: SensitivitySettings | None = None, *, workers: int = 1, progress: bool = True,
                          cache_dir: str | Path | None = None) -> EvalReport:
     """Run the experiment; one table row per configuration."""
-    from drake_skills.data.lasa import DEFAULT_LETTERS, lasa_workspace, load_lasa
-
-    s = settings or SensitivitySettings()
-    if not s.configs:
-        raise ValueError("no configurations to compare")
-    for name, overrides in s.configs.items():
-        _config(overrides)  # bad overrides fail here, before any work
-    if not 1 <= s.n_train < s.n_demos:
-        raise ValueError(f"n_train must be in [1, n_demos), got {s.n_train} of {s.n_demos}")
+    s = settings if settings is not None else SensitivitySettings()
     letters = load_lasa(DEFAULT_LETTERS)
     salad = load_salad_data(SaladSettings(n_subjects=s.n_subjects, n_demos=s.n_demos, data_seed=s.data_seed),
                             workers=workers, progress=progress, cache_dir=cache_dir)
-    ctx = {"settings": s, "letters": letters, "letters_ws": lasa_workspace(letters), "shapes": tuple(
-        sorted({d.task for d in letters})), "salad": salad}
+    ctx = SensitivityContext(s, tuple(letters), lasa_workspace(letters), tuple(sorted({d.task for d in letters})),
+                             tuple(salad))
     names = list(s.configs)
     l_items = [(n, o) for n in names for o in range(s.letter_orders)]
     l_res = run_trials(letters_order, l_items, ctx, workers=workers, desc="sensitivity: letters",
@@ -134,15 +169,15 @@ def evaluate_sensitivity(settings: SensitivitySettings | None = None, *, workers
     for name in names:
         ok = [r for (n, _), r in zip(l_items, l_res) if n == name]
         sr = [r for (n, _, _), r in zip(s_items, s_res) if n == name]
-        worst = min((float(np.mean([r["correct"] for (n, subj, _), r in zip(s_items, s_res)
+        worst = min((float(np.mean([r.correct for (n, subj, _), r in zip(s_items, s_res)
                                     if n == name and subj == j])), j) for j in range(1, s.n_subjects + 1))
         row = {
             "letters_one_per_shape": float(np.mean(ok)),
-            "salad_correct": float(np.mean([r["correct"] for r in sr])),
-            "salad_wrong": float(np.mean([r["wrong"] for r in sr])),
-            "salad_unknown": float(np.mean([r["unknown"] for r in sr])),
+            "salad_correct": float(np.mean([r.correct for r in sr])),
+            "salad_wrong": float(np.mean([r.wrong for r in sr])),
+            "salad_unknown": float(np.mean([r.unknown for r in sr])),
             "salad_worst_subject": worst[1], "salad_worst_subject_correct": worst[0],
-            "salad_components": float(np.mean([r["components"] for r in sr])),
+            "salad_components": float(np.mean([r.components for r in sr])),
         }
         summary[name] = {"overrides": s.configs[name], **row}
         rows.append([name, row["letters_one_per_shape"], row["salad_correct"], row["salad_wrong"],
@@ -155,4 +190,4 @@ def evaluate_sensitivity(settings: SensitivitySettings | None = None, *, workers
                 f"{s.n_train} training demonstrations per task, tested on {s.n_demos - s.n_train}, "
                 f"{s.salad_splits} splits per subject. Same data and orders for every configuration.")
     return EvalReport("Sensitivity of the defaults", {"sensitivity": table}, {},
-                      {"configs": summary, "settings": asdict(s)})
+                      {"configs": summary, "settings": asdict(s) | {"library": s.library.dict()}})

@@ -29,7 +29,6 @@ Deviations from the printed equations, each deliberate and tested:
 """
 from __future__ import annotations
 
-import logging
 from pathlib import Path
 from typing import Sequence
 
@@ -51,8 +50,6 @@ from drake_skills.promp.preprocessing import resample_by_arc_length, resample_in
 
 __all__ = ["Component", "ComponentState", "LibraryConfig", "LibraryState", "NOVELTY_TESTS", "Recognition",
            "SkillLibrary", "UnknownSkillError", "Update", "WorkspaceBounds", "incremental_update"]
-
-log = logging.getLogger(__name__)
 
 
 def _read_only(a: np.ndarray) -> np.ndarray:
@@ -102,7 +99,7 @@ class SkillLibrary:
 
     @classmethod
     def from_state(cls, state: LibraryState) -> "SkillLibrary":
-        """The library of a :meth:`state` snapshot; it recognizes, predicts and keeps learning exactly as the original."""
+        """The library of a :meth:`state` snapshot: it answers and keeps learning exactly as the original."""
         if not isinstance(state, LibraryState):
             raise ValueError(f"from_state takes a LibraryState, got {type(state).__name__}")
         lib = cls(state.config)

@@ -92,7 +92,8 @@ class SimConfig:
         for name, kind in (("library", LibraryConfig), ("decision", DecisionRule), ("controller", ControllerConfig),
                            ("meshcat", MeshcatConfig)):
             if not isinstance(getattr(self, name), kind):
-                raise ValueError(f"SimConfig.{name} must be a {kind.__name__}, got {type(getattr(self, name)).__name__}")
+                raise ValueError(f"SimConfig.{name} must be a {kind.__name__}, "
+                                 f"got {type(getattr(self, name)).__name__}")
         for name in ("time_step", "settle_time", "log_period"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"SimConfig.{name} must be positive, got {getattr(self, name)!r}")

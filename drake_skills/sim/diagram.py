@@ -24,7 +24,6 @@ place that calls ``Connect``.
 """
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -48,8 +47,6 @@ from drake_skills.systems.normalizer import WorkspaceNormalizer
 from drake_skills.systems.trajectory_source import JointTrajectorySource
 from drake_skills.systems.trial_monitor import TrialMonitor
 from drake_skills.systems.wrist_source import HumanWristSource
-
-log = logging.getLogger(__name__)
 
 
 @dataclass

@@ -2,6 +2,7 @@
 import json
 import subprocess
 import sys
+from dataclasses import replace
 
 import pytest
 
@@ -35,10 +36,10 @@ def test_results_do_not_depend_on_the_number_of_workers(reports):
 
 
 def test_bad_overrides_fail_before_any_work():
-    s = SensitivitySettings.quick()
-    s.configs = {"typo": {"gating_flor": 0.5}}
     with pytest.raises(ValueError, match="gating_flor"):
-        evaluate_sensitivity(s, progress=False)
+        replace(SensitivitySettings.quick(), configs={"typo": {"gating_flor": 0.5}})
+    with pytest.raises(ValueError, match="n_train"):
+        replace(SensitivitySettings.quick(), n_train=9)
 
 
 def test_cli_writes_the_table(tmp_path):

@@ -68,7 +68,8 @@ def test_the_library_file_keeps_a_config_read_from_yaml(tmp_path):
     from drake_skills import SkillLibrary
     from synthetic import synthetic_demo
 
-    cfg = load_library_config(_write(tmp_path, "n_basis_robot: 12\nworkspace: {lower: [-8, -8, -8], upper: [8, 8, 8]}\n"))
+    text = "n_basis_robot: 12\nworkspace: {lower: [-8, -8, -8], upper: [8, 8, 8]}\n"
+    cfg = load_library_config(_write(tmp_path, text))
     lib = SkillLibrary(cfg)
     lib.partial_fit(synthetic_demo(0, np.random.default_rng(0)))
     back = SkillLibrary.load(lib.save(tmp_path / "lib.npz")).config
