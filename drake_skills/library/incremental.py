@@ -1,34 +1,44 @@
-"""The incremental, open-ended skill library: the paper's Algorithm 1.
+"""The incremental, open-ended skill library: the paper's Algorithm 1 on a learned scale.
 
-A mixture of Interaction ProMPs learned one demonstration at a time.  Each
-component ``k`` holds a Gaussian over the stacked weights ``[w_h; w_r]`` (the
-expert, Eq. 8), a support ``s_k``, an age ``v_k`` and a mean duration.  The
-gating model of the paper (an incremental GMM on the human weights, Eq. 7) is
-the human block of the experts: both are updated with the same
-responsibilities, rates and initial covariance, so the paper's ``mu^g, Sigma^g``
-equal ``mu^e[h], Sigma^e[h, h]`` exactly and are not stored twice.  For
-human-only data (letters) the expert *is* the gating model (Sec. 4.1).
+A mixture of Interaction ProMPs learned one demonstration at a time. Each component
+``k`` holds the exact moments of the stacked weights ``[w_h; w_r]`` of the
+demonstrations it absorbed (support ``s_k``, mean, scatter), its age ``v_k``, the mean
+duration and path length of its motions, and the same moments for two sub-clusters of
+them. The algorithm is pure functions in :mod:`drake_skills.library.algorithm`, the
+scale in :mod:`drake_skills.library.scale`, the tests in
+:mod:`drake_skills.library.novelty`; this class encodes demonstrations, keeps the
+state and answers queries.
 
-The algorithm itself is pure functions in :mod:`drake_skills.library.algorithm`
-(novelty, update, merge, delete) and :mod:`drake_skills.library.novelty` (the
-tests); this class encodes demonstrations, keeps the state and answers queries.
-Deviations from the printed equations, each deliberate and tested:
+Where it departs from the paper, and why (RESULTS.md has the measurements):
 
-* Eqs. (7)-(8) read literally shrink the new sample's scatter by ``(1 - gamma)``.
-  We use ``C <- (1 - g~) C + g~ (1 - g) e e^T`` with ``e = w - mu_old``, which
-  is the exact running (biased, responsibility-weighted) covariance when
-  ``g~ = g`` and forgets the initial covariance faster when ``g~ > g``
-  (:func:`incremental_update`).
-* Eq. (11) as printed is garbled; merging uses the moment-matched Gaussian of
-  the two support-weighted components (:func:`~drake_skills.promp.gaussian.merge_moments`).
-* Novelty and "unknown" are the same likelihood test, in a scale-free chi-square
-  form by default (:mod:`drake_skills.library.novelty`).
-* A variance floor (``gating_floor``) is added to the gating covariance when it
-  is evaluated, so a component does not become infinitely sure in directions
-  it has not yet seen.
+* **One learned scale instead of a fixed Sigma_init.** The paper's gating model gives
+  each component its own covariance, started at a hand-set ``Sigma_init``; no fixed
+  setting serves real data (every real demonstration became its own component, while
+  30 letters merged). Here the gating judges every component with one within-skill
+  covariance ``Sigma`` pooled from all components' scatter and borrowed by a component
+  seen once (a hierarchical, Normal-inverse-Wishart-like prior whose scale matrix is
+  learned online), with the uncertainty of the component's mean added:
+  ``Sigma (1 + 1/s_k)``. Each expert (Eq. 8) keeps its own covariance, its scatter
+  shrunk towards the shared one: ``(kappa Sigma + S_k) / (kappa + s_k - 1)``.
+* **Exact running moments** (Eqs. 6-8): the printed Eqs. 7-8 drop a factor
+  ``(1 - gamma)`` of the new scatter; ``gamma~`` (fast forgetting of ``Sigma_init``) is
+  not needed once the initial covariance is the learned shared one.
+* **Merging** (Eqs. 10-11): the moment-matched union (the printed Eq. 11 is garbled),
+  when the two-sample distance of the means under ``Sigma`` is below a chi-square
+  quantile; a merged component remembers the two it came from and **splits** again if
+  they drift apart as the scale is learned (a merge made on an early, too-wide scale is
+  not final).
+* **Novelty and "unknown"** are one likelihood test, a chi-square quantile by default;
+  recognition also answers **"undecided"** when more than one skill explains the
+  motion and none is ``1 - decision_risk`` probable, and estimates from a prefix how
+  much of each skill's motion it covers (its phase).
+* **Deletion** by age and support, with the age limit growing with the number of
+  components (``delete_min_age K / 5``), so that a library of many skills, each
+  shown rarely, does not delete them before their second demonstration.
 """
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 from typing import Sequence
 
@@ -38,18 +48,24 @@ from drake_skills._checks import as_finite_array
 from drake_skills.data.demonstration import Demonstration
 from drake_skills.data.workspace import Workspace
 from drake_skills.library import storage
-from drake_skills.library.algorithm import ComponentModel, fold_in, gating_scores, incremental_update, \
-    responsibilities
+from drake_skills.library.algorithm import (ComponentModel, Components, fold_in, gating_metric, gating_scores,
+                                            responsibilities)
 from drake_skills.library.config import NOVELTY_TESTS, LibraryConfig, WorkspaceBounds
 from drake_skills.library.novelty import novelty_rule
+from drake_skills.library.scale import Cluster, SharedScale, shared_covariance
 from drake_skills.library.state import ComponentState, LibraryState
 from drake_skills.library.views import Component, Recognition, UnknownSkillError, Update
 from drake_skills.promp.basis import ridge_weights, trajectory_covariance
-from drake_skills.promp.interaction import InteractionProMP, condition_on_observations, observation_log_likelihood
-from drake_skills.promp.preprocessing import resample_by_arc_length, resample_in_time
+from drake_skills.promp.interaction import InteractionProMP, condition_on_observations, prefix_statistics
+from drake_skills.promp.preprocessing import arc_length, resample_by_arc_length, resample_in_time
 
 __all__ = ["Component", "ComponentState", "LibraryConfig", "LibraryState", "NOVELTY_TESTS", "Recognition",
-           "SkillLibrary", "UnknownSkillError", "Update", "WorkspaceBounds", "incremental_update"]
+           "SkillLibrary", "UnknownSkillError", "Update", "WorkspaceBounds"]
+
+log = logging.getLogger(__name__)
+
+#: Relative phase grid around the path-length estimate searched by prefix recognition.
+PHASE_GRID = (0.8, 0.9, 1.0, 1.1, 1.25)
 
 
 def _read_only(a: np.ndarray) -> np.ndarray:
@@ -64,7 +80,8 @@ class SkillLibrary:
     Parameters
     ----------
     config : LibraryConfig, optional
-        Hyperparameters; defaults work on letters and on the salad scenario.
+        Hyperparameters; the defaults serve letters, the salad scenario and real
+        human-robot interactions alike (nothing in them is a length).
 
     Examples
     --------
@@ -79,23 +96,26 @@ class SkillLibrary:
         self.config = config if config is not None else LibraryConfig()
         if not isinstance(self.config, LibraryConfig):
             raise ValueError(f"config must be a LibraryConfig, got {type(self.config).__name__}")
+        self._rule = novelty_rule(self.config)
         self._reset()
 
     def _reset(self):
-        self._components: tuple[ComponentModel, ...] = ()
+        self._components = Components()
+        self._scale: SharedScale | None = None
         self._history: list[dict] = []
         self._next_id = 0
         self._n_seen = 0
+        self._shared = None  # cache: shared stacked covariance of the current scale
         self.dim_human_: int | None = None
         self.dim_robot_: int | None = None
 
     # ------------------------------------------------------------------ state
     def state(self) -> LibraryState:
-        """A snapshot of everything learned (arrays read-only; the library never writes them in place)."""
-        comps = tuple(ComponentState(c.id, c.age, c.support, _read_only(c.mean), _read_only(c.cov), c.duration)
-                      for c in self._components)
+        """A snapshot of everything learned (the library never writes its arrays in place)."""
+        comps = tuple(ComponentState(c.id, self._n_seen - c.created, c.cluster, c.subclusters)
+                      for c in self._components.items)
         return LibraryState(self.config, self.dim_human_, self.dim_robot_, self._next_id, self._n_seen, comps,
-                            tuple(dict(e) for e in self._history))
+                            tuple(dict(e) for e in self._history), self._scale)
 
     @classmethod
     def from_state(cls, state: LibraryState) -> "SkillLibrary":
@@ -103,14 +123,14 @@ class SkillLibrary:
         if not isinstance(state, LibraryState):
             raise ValueError(f"from_state takes a LibraryState, got {type(state).__name__}")
         lib = cls(state.config)
-        h, floor = state.n_human, state.config.gating_floor
-        lib._components = tuple(ComponentModel.of(ComponentState(c.id, c.age, c.support, np.array(c.mean, float),
-                                                                 np.array(c.cov, float), c.duration), h, floor)
-                                for c in state.components)
         lib._history = [dict(e) for e in state.history]
         lib._next_id, lib._n_seen = int(state.next_id), int(state.n_seen)
         if state.dim_human is not None:
             lib.dim_human_, lib.dim_robot_ = int(state.dim_human), int(state.dim_robot)
+            lib._scale = state.scale
+            lib._components = Components.of(
+                [ComponentModel(c.id, lib._n_seen - int(c.age), c.cluster, tuple(c.subclusters))
+                 for c in state.components], lib.n_human)
         return lib
 
     # ------------------------------------------------------------------ views
@@ -125,15 +145,22 @@ class SkillLibrary:
 
     @property
     def components(self) -> tuple[Component, ...]:
-        """Read-only views of the components (arrays are not copied and not writable)."""
-        total = sum(c.support for c in self._components) or 1.0
+        """Read-only views of the components (covariances are computed when first asked for)."""
+        items = self._components.items
+        if not items:
+            return ()
+        total = float(self._components.support.sum())
         h = self.n_human
-        return tuple(Component(c.id, c.age, c.support, c.support / total, _read_only(c.mean), _read_only(c.cov), h,
-                               c.duration) for c in self._components)
+        return tuple(self._view(c, total, h) for c in items)
+
+    def _view(self, c: ComponentModel, total: float, h: int) -> Component:
+        return Component(c.id, self._n_seen - c.created, c.support, c.support / total, _read_only(c.mean), h,
+                         c.cluster.duration, c.cluster.path_length,
+                         lambda: self._expert_cov(c), lambda: self._gating_cov() * (1.0 + 1.0 / c.support))
 
     @property
     def history(self) -> tuple[dict, ...]:
-        """Creations, merges and deletions, in order."""
+        """Creations, merges, splits and deletions, in order."""
         return tuple(dict(e) for e in self._history)
 
     @property
@@ -147,40 +174,73 @@ class SkillLibrary:
 
     def component(self, component_id: int) -> Component:
         """The component with this id (KeyError if there is none)."""
-        for c in self.components:
-            if c.id == component_id:
-                return c
-        raise KeyError(f"no component with id {component_id}; ids are {[c.id for c in self._components]}")
+        c = self._model(component_id)
+        return self._view(c, float(self._components.support.sum()), self.n_human)
 
     def _model(self, component_id: int) -> ComponentModel:
-        for c in self._components:
+        for c in self._components.items:
             if c.id == component_id:
                 return c
-        raise KeyError(f"no component with id {component_id}; ids are {[c.id for c in self._components]}")
+        raise KeyError(f"no component with id {component_id}; ids are {list(self._components.ids)}")
+
+    def shared_covariance(self, part: str = "gating") -> np.ndarray:
+        """The learned within-skill covariance: of the gating weights (h, h) or the stacked weights (d, d).
+
+        This is the scale of every novelty, merge and split decision
+        (:mod:`drake_skills.library.scale`); a new component's expert starts from it.
+        """
+        self._check_fitted()
+        if part == "gating":
+            return self._gating_cov().copy()
+        if part == "expert":
+            return self._shared_cov().copy()
+        raise ValueError(f"part must be 'gating' or 'expert', got {part!r}")
+
+    def _shared_cov(self) -> np.ndarray:
+        if self._shared is None or self._shared[0] is not self._scale:
+            cfg = self.config
+            S = shared_covariance(self._scale, self.n_human, prior_scale=cfg.prior_scale,
+                                  prior_strength=cfg.prior_strength, shrinkage=cfg.shrinkage,
+                                  prior_floor=cfg.prior_floor)
+            S.setflags(write=False)
+            self._shared = (self._scale, S)
+        return self._shared[1]
+
+    def _gating_cov(self) -> np.ndarray:
+        h = self.n_human
+        return self._shared_cov()[:h, :h]
+
+    def _expert_cov(self, c: ComponentModel) -> np.ndarray:
+        k = self.config.expert_prior
+        C = (k * self._shared_cov() + c.cluster.scatter) / (k + c.support - 1.0)
+        return 0.5 * (C + C.T)
 
     def as_mixture(self, part: str = "gating"):
         """The library as a Gaussian mixture ``(weights (K,), means (K, d), covs (K, d, d))``.
 
-        ``part="gating"`` gives the mixture over human weights (Eq. 5, without
-        the evaluation floor); ``"expert"`` the one over stacked weights (Eq. 2).
+        ``part="gating"`` gives the mixture over human weights the gating judges with
+        (Eq. 5: the shared covariance times ``1 + 1/s_k``); ``"expert"`` the one over
+        stacked weights (Eq. 2).
         """
         self._check_fitted()
         if part not in ("gating", "expert"):
             raise ValueError(f"part must be 'gating' or 'expert', got {part!r}")
-        if not self._components:
+        items = self._components.items
+        if not items:
             raise ValueError("the library has no components")
-        d = self.n_human if part == "gating" else self._components[0].mean.shape[0]
-        s = np.array([c.support for c in self._components])
-        means = np.stack([c.mean[:d] for c in self._components])
-        covs = np.stack([c.cov[:d, :d] for c in self._components])
-        return s / s.sum(), means, covs
+        s = self._components.support
+        if part == "gating":
+            G = self._gating_cov()
+            covs = np.stack([G * (1.0 + 1.0 / c.support) for c in items])
+            return s / s.sum(), self._components.means_h.copy(), covs
+        return s / s.sum(), np.stack([c.mean for c in items]), np.stack([self._expert_cov(c) for c in items])
 
     def interaction_promp(self, component_id: int) -> InteractionProMP:
         """The Interaction ProMP of one component (a copy)."""
-        c = self.component(component_id)
+        c = self._model(component_id)
         cfg = self.config
         return InteractionProMP.from_moments(
-            np.array(c.mean), np.array(c.cov), self.dim_human_, self.dim_robot_,
+            np.array(c.mean), self._expert_cov(c), self.dim_human_, self.dim_robot_,
             basis_human=cfg.basis_human, basis_robot=cfg.basis_robot, ridge=cfg.ridge,
             observation_noise=cfg.observation_noise)
 
@@ -192,6 +252,43 @@ class SkillLibrary:
         return f"SkillLibrary(n_components={self.n_components}, n_seen={self.n_seen})"
 
     # --------------------------------------------------------- preprocessing
+    def _normalized(self, human, workspace=None, normalized: bool = False, where: str | None = None):
+        """Eq. (14): the motion in normalized units relative to its start, and its path length.
+
+        Returns
+        -------
+        y : array, shape (T, D_h)
+        length : float
+            Arc length of ``y`` counting only moves beyond ``resample_tolerance``.
+        """
+        cfg = self.config
+        human = as_finite_array(human, "human", ndim=2, min_rows=2, where=where)
+        if self.dim_human_ is not None and human.shape[1] != self.dim_human_:
+            raise ValueError(f"{where + ': ' if where else ''}human has {human.shape[1]} columns, "
+                             f"the library was built on {self.dim_human_}")
+        if normalized:
+            if workspace is not None:
+                raise ValueError("normalized samples take no workspace: Eq. (14) is already applied")
+        else:
+            ws = workspace if workspace is not None else cfg.workspace
+            if ws is not None and not isinstance(ws, Workspace):
+                raise ValueError(f"workspace must be a Workspace, got {type(ws).__name__}")
+            if ws is not None:
+                if ws.dim != human.shape[1]:
+                    raise ValueError(f"workspace is {ws.dim}-D but human has {human.shape[1]} columns")
+                human = ws.normalize(human, subtract_start=cfg.subtract_start)
+            elif cfg.subtract_start:
+                human = human - human[0]
+        length = float(arc_length(human, cfg.resample_tolerance)[1][-1])
+        if not length > 0:
+            raise ValueError(f"{where + ': ' if where else ''}human trajectory does not move: its path length is 0")
+        return human, length
+
+    def path_length(self, human, *, workspace: Workspace | None = None, normalized: bool = False,
+                    where: str | None = None) -> float:
+        """Length of the human path in normalized units (the measure of a prefix's phase)."""
+        return self._normalized(human, workspace, normalized, where)[1]
+
     def human_samples(self, human, *, workspace: Workspace | None = None, observed_fraction: float = 1.0,
                       normalized: bool = False, where: str | None = None) -> np.ndarray:
         """The human motion as the library sees it: Eq. (14), then resampled by arc length.
@@ -218,31 +315,12 @@ class SkillLibrary:
             for a whole motion, ``round(observed_fraction n_samples)`` (>= 2) for a prefix.
         """
         cfg = self.config
-        human = as_finite_array(human, "human", ndim=2, min_rows=2, where=where)
-        if self.dim_human_ is not None and human.shape[1] != self.dim_human_:
-            raise ValueError(f"{where + ': ' if where else ''}human has {human.shape[1]} columns, "
-                             f"the library was built on {self.dim_human_}")
-        if normalized:
-            if workspace is not None:
-                raise ValueError("normalized samples take no workspace: Eq. (14) is already applied")
-        else:
-            ws = workspace if workspace is not None else cfg.workspace
-            if ws is not None and not isinstance(ws, Workspace):
-                raise ValueError(f"workspace must be a Workspace, got {type(ws).__name__}")
-            if ws is not None:
-                if ws.dim != human.shape[1]:
-                    raise ValueError(f"workspace is {ws.dim}-D but human has {human.shape[1]} columns")
-                human = ws.normalize(human, subtract_start=cfg.subtract_start)
-            elif cfg.subtract_start:
-                human = human - human[0]
         f = float(observed_fraction)
         if not 0 < f <= 1:
             raise ValueError(f"observed_fraction must be in (0, 1], got {observed_fraction!r}")
+        y, _ = self._normalized(human, workspace, normalized, where)
         n = cfg.n_samples if f == 1 else max(2, int(round(f * cfg.n_samples)))
-        try:
-            return resample_by_arc_length(human, n, cfg.resample_tolerance)
-        except ValueError as exc:
-            raise ValueError(f"{where + ': ' if where else ''}human {exc}") from None
+        return resample_by_arc_length(y, n, cfg.resample_tolerance)
 
     def encode(self, demo: Demonstration, workspace: Workspace | None = None) -> np.ndarray:
         """The stacked weights of a demonstration in the library's weight space (Eqs. 3-4, 14).
@@ -315,75 +393,163 @@ class SkillLibrary:
         w = self.encode(demo, workspace)
         if not np.isfinite(w).all():
             raise ValueError("demonstration gives non-finite weights")
+        where = f"demo {demo.name!r}" if demo.name else "demonstration"
+        path = self.path_length(demo.human, workspace=workspace, where=where)
         n = self._n_seen
-        step = fold_in(self._components, w, demo.duration, n_human=demo.dim_human * self.config.n_basis_human,
-                       config=self.config, next_id=self._next_id, demo_index=n)
+        h = demo.dim_human * self.config.n_basis_human
+        comps = self._components if self._scale is not None else Components.of([], h)
+        scale = self._scale if self._scale is not None else SharedScale.empty(w.shape[0])
+        step = fold_in(comps, scale, w, demo.duration, path, n_human=h, config=self.config, rule=self._rule,
+                       next_id=self._next_id, demo_index=n)
         # commit: nothing above touched self
-        self._components = step.components
+        self._components, self._scale = step.components, step.scale
         self._history.extend(step.history)
         self._next_id = step.next_id
         self._n_seen = n + 1
         if self.dim_human_ is None:
             self.dim_human_, self.dim_robot_ = demo.dim_human, demo.dim_robot
         return Update(n, step.recognized, step.created, step.updated, step.merged, step.deleted,
-                      step.responsibilities)
+                      step.responsibilities, step.split, step.subcluster)
 
     # ------------------------------------------------------------- run time
-    def recognize(self, human, *, observed_fraction: float = 1.0, workspace: Workspace | None = None,
+    def recognize(self, human, *, observed_fraction: float | None = None, workspace: Workspace | None = None,
                   normalized: bool = False) -> Recognition:
-        """Which skill is this human motion (Eq. 12), or None for unknown.
+        """Which skill is this human motion (Eq. 12): "skill", "undecided" or "unknown".
 
         Parameters
         ----------
         human : array, shape (T, D_h)
             The observed human positions (raw units if a workspace applies; see
-            :meth:`human_samples` for ``normalized``).
-        observed_fraction : float
-            Fraction of the whole motion's path that ``human`` covers; below 1
-            the motion is compared with each component's prefix through the
-            marginal likelihood of the observed samples.
+            :meth:`human_samples` for ``normalized``): a whole motion or its beginning.
+        observed_fraction : float in (0, 1], optional
+            The fraction of the whole motion's path ``human`` covers, if known: 1 tests
+            the motion's weights against each component (as learning does), less
+            compares the observed samples with each component's prefix of that length.
+            If omitted, the fraction is estimated per component: its path length
+            against the component's mean path length, refined over :data:`PHASE_GRID`
+            by the likelihood of the samples (``Recognition.phases``).
         workspace : Workspace, optional
         normalized : bool
             ``human`` is already in the library's normalized units (Eq. 14 applied).
         """
         self._check_fitted()
-        y = self.human_samples(human, workspace=workspace, observed_fraction=observed_fraction,
-                               normalized=normalized)
-        return self._recognize_samples(y, float(observed_fraction))
+        if observed_fraction is not None:
+            y = self.human_samples(human, workspace=workspace, observed_fraction=observed_fraction,
+                                   normalized=normalized)
+            return self._recognize_fixed(y, float(observed_fraction))
+        y, length = self._normalized(human, workspace, normalized)
+        return self._recognize_prefix(y, length)
 
-    def _recognize_samples(self, y, observed_fraction: float) -> Recognition:
-        """Eq. (12) on preprocessed human samples ``y`` (evenly spaced in phase)."""
+    def _empty_recognition(self, dof) -> Recognition:
+        z = np.zeros(0)
+        return Recognition(None, (), z, z, z, dof, "unknown", z, z)
+
+    def _decide(self, logp, d2, dof, phases) -> Recognition:
+        comps = self._components
+        fits = ~self._rule.novel(logp, d2, dof)
+        resp = responsibilities(logp, comps.support)
+        post = responsibilities(logp, comps.support, fits)
+        ids = comps.ids
+        best = int(np.argmax(post))
+        if not fits.any():
+            status, comp = "unknown", None
+        elif post[best] >= 1.0 - self.config.decision_risk or \
+                post[self._same_response(best, post > 0)].sum() >= 1.0 - self.config.decision_risk:
+            status, comp = "skill", ids[best]
+        else:
+            status, comp = "undecided", None
+        return Recognition(comp, ids, resp, logp, d2, dof, status, phases, post)
+
+    def _same_response(self, best: int, candidates: np.ndarray) -> np.ndarray:
+        """Which candidates answer like component ``best`` (a mask, ``best`` included).
+
+        Executing ``best`` is only wrong if the motion belongs to a component that
+        would answer differently: another component whose mean response (its robot
+        weights; the human weights of a human-only library) lies within the best's
+        predictive within-skill spread (the ``novelty_quantile`` of the distance under
+        ``Sigma_rr (1 + 1/s_best)``) answers the same way, so its probability counts
+        for ``best`` in the decision.
+        """
+        comps = self._components
+        h = self.n_human
+        idx = np.flatnonzero(candidates)
+        out = np.zeros(len(comps), bool)
+        out[best] = True
+        others = idx[idx != best]
+        if not others.size:
+            return out
+        block = slice(h, None) if self.has_robot else slice(0, h)
+        S = self._shared_cov()[block, block] * (1.0 + 1.0 / comps.support[best])
+        Linv = np.linalg.inv(np.linalg.cholesky(S))
+        mb = comps.items[best].mean[block]
+        diff = np.stack([comps.items[j].mean[block] - mb for j in others]) @ Linv.T
+        d2 = np.einsum("ij,ij->i", diff, diff)
+        dof = S.shape[0]
+        from drake_skills.library.novelty import chi2_ppf
+        out[others] = d2 <= chi2_ppf(self.config.novelty_quantile, dof)
+        return out
+
+    def _recognize_fixed(self, y, observed_fraction: float) -> Recognition:
+        """Eq. (12) on preprocessed human samples ``y`` evenly spaced in phase over ``[0, observed_fraction]``."""
         cfg = self.config
         comps = self._components
         h = self.n_human
-        if not comps:
-            return Recognition(None, (), np.zeros(0), np.zeros(0), np.zeros(0), h)
+        if not len(comps):
+            return self._empty_recognition(h)
+        metric = gating_metric(self._scale, h, cfg)
         if observed_fraction == 1:
             w_h = ridge_weights(y, cfg.basis_human, cfg.ridge)
-            logp, d2 = gating_scores(w_h, comps)
-            dof = h
-        else:
-            Phi_o = cfg.basis_human.phi(np.linspace(0.0, observed_fraction, y.shape[0]))
-            logp, d2 = np.empty(len(comps)), np.empty(len(comps))
-            floor = cfg.gating_floor * np.eye(h)
-            for i, c in enumerate(comps):
-                logp[i], d2[i], dof = observation_log_likelihood(
-                    c.mean[:h], c.cov[:h, :h] + floor, Phi_o, y, cfg.observation_noise)
-        resp = responsibilities(logp, comps)
-        novel = novelty_rule(cfg).novel(logp, d2, dof)
-        ids = tuple(c.id for c in comps)
-        comp = None if novel.all() else ids[int(np.argmax(np.where(novel, -np.inf, np.log(resp + 1e-300))))]
-        return Recognition(comp, ids, resp, logp, d2, int(dof))
+            logp, d2 = gating_scores(w_h, comps, metric)
+            return self._decide(logp, d2, h, np.ones(len(comps)))
+        Phi_o = cfg.basis_human.phi(np.linspace(0.0, observed_fraction, y.shape[0]))
+        logp, d2, dof = self._prefix_scores(y, [Phi_o] * len(comps), metric)
+        return self._decide(logp, d2, dof, np.full(len(comps), observed_fraction))
 
-    def predict_robot(self, human, observed_fraction: float = 1.0, *, workspace: Workspace | None = None,
+    def _prefix_scores(self, y, Phis, metric):
+        comps = self._components
+        K = len(comps)
+        logp, d2, dof = np.empty(K), np.empty(K), np.empty(K)
+        for i, (c, Phi_o) in enumerate(zip(comps.items, Phis)):
+            S = metric.cov * (1.0 + 1.0 / c.support)
+            logp[i], d2[i], dof[i] = prefix_statistics(comps.means_h[i], S, Phi_o, y, self.config.observation_noise)
+        return logp, d2, dof
+
+    def _recognize_prefix(self, y, length: float) -> Recognition:
+        """Recognition with the phase estimated per component (see :meth:`recognize`)."""
+        cfg = self.config
+        comps = self._components
+        h = self.n_human
+        if not len(comps):
+            return self._empty_recognition(h)
+        metric = gating_metric(self._scale, h, cfg)
+        lengths = np.array([max(c.cluster.path_length, 1e-12) for c in comps.items])
+        guess = length / lengths
+        m = max(2, int(round(cfg.n_samples * min(1.0, float(np.median(np.minimum(guess, 1.0)))))))
+        ys = _resample_path(y, m, cfg.resample_tolerance)
+        best = None
+        for factor in PHASE_GRID:
+            f = np.clip(guess * factor, 1.0 / cfg.n_samples, 1.0)
+            Phis = [cfg.basis_human.phi(np.linspace(0.0, fk, m)) for fk in f]
+            lp, dd, df = self._prefix_scores(ys, Phis, metric)
+            if best is None:
+                best = [lp, dd, df, f]
+            else:
+                better = lp > best[0]
+                for arr, new in zip(best, (lp, dd, df, f)):
+                    arr[better] = new[better]
+        logp, d2, dof, phases = best
+        return self._decide(logp, d2, dof, phases)
+
+    def predict_robot(self, human, observed_fraction: float | None = None, *, workspace: Workspace | None = None,
                       component: int | None = None, n_steps: int | None = None, normalized: bool = False):
         """Robot trajectory for an observed human motion (Eqs. 12-13).
 
         Recognizes the skill (unless ``component`` is given), conditions its
         Interaction ProMP on the observed human samples and returns the robot
         trajectory distribution over the component's phase (normalized time).
-        ``normalized=True``: ``human`` is already in the library's normalized
-        units (see :meth:`human_samples`).
+        Without ``observed_fraction`` the fraction observed is estimated as in
+        :meth:`recognize`. ``normalized=True``: ``human`` is already in the library's
+        normalized units (see :meth:`human_samples`).
 
         Returns
         -------
@@ -395,7 +561,7 @@ class SkillLibrary:
         Raises
         ------
         UnknownSkillError
-            If the motion matches no component.
+            If the motion matches no component, or more than one and none clearly.
         ValueError
             For bad input, or a library without robot trajectories.
         KeyError
@@ -404,21 +570,52 @@ class SkillLibrary:
         self._check_fitted()
         if not self.has_robot:
             raise ValueError("this library was learned from human-only demonstrations: it has no robot part")
-        y = self.human_samples(human, workspace=workspace, observed_fraction=observed_fraction,
-                               normalized=normalized)
-        if component is None:
-            component = self._recognize_samples(y, float(observed_fraction)).component
-            if component is None:
-                raise UnknownSkillError("the motion matches no skill in the library: ask for a demonstration")
-        c = self._model(component)
         cfg = self.config
-        Phi_o = cfg.basis_human.phi(np.linspace(0.0, float(observed_fraction), y.shape[0]))
+        if observed_fraction is None:
+            y, length = self._normalized(human, workspace, normalized)
+            if component is None:
+                rec = self._recognize_prefix(y, length)
+                if rec.component is None:
+                    raise UnknownSkillError(_unknown_message(rec))
+                component, f = rec.component, rec.phase
+            else:
+                c = self._model(component)
+                f = self._phase_of(y, length, c)
+            y = _resample_path(y, max(2, int(round(cfg.n_samples * f))), cfg.resample_tolerance)
+        else:
+            f = float(observed_fraction)
+            y = self.human_samples(human, workspace=workspace, observed_fraction=f, normalized=normalized)
+            if component is None:
+                rec = self._recognize_fixed(y, f)
+                if rec.component is None:
+                    raise UnknownSkillError(_unknown_message(rec))
+                component = rec.component
+        c = self._model(component)
+        Phi_o = cfg.basis_human.phi(np.linspace(0.0, f, y.shape[0]))
         h, n = self.n_human, n_steps or cfg.n_samples
         # Eq. (13), keeping only the robot block of the posterior
-        mean_w, cov_w = condition_on_observations(c.mean, c.cov, Phi_o, y, cfg.observation_noise, start=h)
+        mean_w, cov_w = condition_on_observations(c.mean, self._expert_cov(c), Phi_o, y, cfg.observation_noise,
+                                                  start=h)
         mean_r = cfg.basis_robot.phi_uniform(n) @ mean_w.reshape(self.dim_robot_, -1).T
         cov_r = trajectory_covariance(cov_w, cfg.basis_robot, self.dim_robot_, n_steps=n)
         return mean_r, cov_r
+
+    def _phase_of(self, y, length: float, c: ComponentModel) -> float:
+        """The phase of one component that explains the normalized path ``y`` best (over :data:`PHASE_GRID`)."""
+        cfg = self.config
+        metric = gating_metric(self._scale, self.n_human, cfg)
+        guess = length / max(c.cluster.path_length, 1e-12)
+        best = (-np.inf, 1.0)
+        i = self._components.ids.index(c.id)
+        for factor in PHASE_GRID:
+            f = float(np.clip(guess * factor, 1.0 / cfg.n_samples, 1.0))
+            m = max(2, int(round(cfg.n_samples * f)))
+            ys = _resample_path(y, m, cfg.resample_tolerance)
+            lp, _, _ = prefix_statistics(self._components.means_h[i], metric.cov * (1.0 + 1.0 / c.support),
+                                         cfg.basis_human.phi(np.linspace(0.0, f, m)), ys, cfg.observation_noise)
+            if lp > best[0]:
+                best = (lp, f)
+        return best[1]
 
     # ---------------------------------------------------------------- storage
     def save(self, path) -> Path:
@@ -432,3 +629,15 @@ class SkillLibrary:
     def load(cls, path) -> "SkillLibrary":
         """Read a library written by :meth:`save`; corrupt or foreign files raise ValueError."""
         return cls.from_state(storage.load_state(path))
+
+
+def _resample_path(y: np.ndarray, n: int, tolerance: float) -> np.ndarray:
+    return resample_by_arc_length(y, n, tolerance)
+
+
+def _unknown_message(rec: Recognition) -> str:
+    if rec.status == "undecided":
+        top = np.argsort(rec.posterior)[::-1][:2]
+        cands = ", ".join(f"{rec.ids[i]} ({rec.posterior[i]:.2f})" for i in top)
+        return f"the motion fits more than one skill and none clearly ({cands}): observe more, or ask"
+    return "the motion matches no skill in the library: ask for a demonstration"

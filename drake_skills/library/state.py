@@ -12,34 +12,62 @@ from dataclasses import dataclass
 import numpy as np
 
 from drake_skills.library.config import LibraryConfig
+from drake_skills.library.scale import Cluster, SharedScale
 
 
 @dataclass(frozen=True, eq=False)
 class ComponentState:
-    """One component: an Interaction ProMP over the stacked weights and its bookkeeping.
+    """One component: the moments of its demonstrations, its age and its two sub-clusters.
 
     Attributes
     ----------
     id : int
         Stable identifier (ids are never reused).
     age : int
-        v_k, demonstrations processed since the component was created.
-    support : float
-        s_k, the responsibility mass it has absorbed (> 0).
-    mean : array, shape (d,)
-        Mean of the stacked weights ``[w_h; w_r]`` (Eq. 8).
-    cov : array, shape (d, d)
-        Their covariance, symmetric positive definite.
-    duration : float
-        Mean duration of its demonstrations in seconds.
+        v_k, demonstrations processed since the component was created (>= 1).
+    cluster : Cluster
+        Support s_k, mean and scatter of the stacked weights ``[w_h; w_r]``, mean
+        duration and path length of its demonstrations.
+    subclusters : tuple (Cluster, Cluster or None)
+        Its demonstrations split in two; their union is ``cluster`` (the split test
+        of :mod:`drake_skills.library.novelty` looks at how far apart they are).
     """
 
     id: int
     age: int
-    support: float
-    mean: np.ndarray
-    cov: np.ndarray
-    duration: float
+    cluster: Cluster
+    subclusters: tuple
+
+    @property
+    def support(self) -> float:
+        return self.cluster.support
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self.cluster.mean
+
+    @property
+    def duration(self) -> float:
+        return self.cluster.duration
+
+    @property
+    def path_length(self) -> float:
+        return self.cluster.path_length
+
+
+def _check_cluster(cl, d: int, what: str) -> None:
+    if not isinstance(cl, Cluster):
+        raise ValueError(f"{what} is not a Cluster")
+    if not (np.isfinite(cl.support) and cl.support > 0):
+        raise ValueError(f"{what} has support {cl.support}")
+    if np.shape(cl.mean) != (d,) or np.ndim(cl.factor) != 2 or np.shape(cl.factor)[0] != d \
+            or np.shape(cl.factor)[1] > d:
+        raise ValueError(f"{what} has mean and scatter shapes {np.shape(cl.mean)}, {np.shape(cl.factor)}; "
+                         f"the dimensions say {d} weights")
+    if not (np.isfinite(cl.mean).all() and np.isfinite(cl.factor).all()):
+        raise ValueError(f"{what} has NaN or inf in its mean or scatter")
+    if not (np.isfinite(cl.duration) and cl.duration >= 0 and np.isfinite(cl.path_length) and cl.path_length >= 0):
+        raise ValueError(f"{what} has duration {cl.duration} and path length {cl.path_length}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,7 +86,9 @@ class LibraryState:
     components : tuple of ComponentState
         In the library's order (the order of responsibilities and recognitions).
     history : tuple of dict
-        Creations, merges and deletions, in order (JSON-ready dicts).
+        Creations, merges, splits and deletions, in order (JSON-ready dicts).
+    scale : SharedScale or None
+        The totals and the pooled within-skill scatter (None before the first demonstration).
     """
 
     config: LibraryConfig
@@ -68,6 +98,7 @@ class LibraryState:
     n_seen: int
     components: tuple[ComponentState, ...] = ()
     history: tuple[dict, ...] = ()
+    scale: SharedScale | None = None
 
     def __post_init__(self):
         if not isinstance(self.config, LibraryConfig):
@@ -77,25 +108,41 @@ class LibraryState:
                              f"{self.dim_human!r} and {self.dim_robot!r}")
         if self.components and self.dim_human is None:
             raise ValueError("components but no dimensions")
+        if self.dim_human is not None and (self.dim_human < 1 or self.dim_robot < 0):
+            raise ValueError(f"dimensions must be dim_human >= 1 and dim_robot >= 0, got "
+                             f"{self.dim_human}, {self.dim_robot}")
+        if self.n_seen < 0 or self.next_id < 0:
+            raise ValueError(f"n_seen and next_id must be >= 0, got {self.n_seen}, {self.next_id}")
         d = self.n_weights
+        if self.dim_human is not None:
+            sc = self.scale
+            if not isinstance(sc, SharedScale):
+                raise ValueError("a fitted library needs its shared scale")
+            if np.shape(sc.total_mean) != (d,) or np.shape(sc.total_m2) != (d,) or np.shape(sc.pooled) != (d, d):
+                raise ValueError(f"shared scale has shapes {np.shape(sc.total_mean)}, {np.shape(sc.pooled)}; "
+                                 f"the dimensions say {d} weights")
+            if not all(np.isfinite(a).all() for a in (sc.total_mean, sc.total_m2, sc.pooled)) \
+                    or not np.isfinite(sc.dof) or sc.n < 0:
+                raise ValueError("shared scale has NaN or inf entries or a negative count")
+            if (sc.total_m2 < -1e-9 * (1 + np.abs(sc.total_m2).max())).any() or sc.dof < -1e-9:
+                raise ValueError("shared scale has negative variances or degrees of freedom")
         ids = set()
         for c in self.components:
             if c.id in ids or not 0 <= c.id < self.next_id:
                 raise ValueError(f"component id {c.id} is duplicated or out of range (next id {self.next_id})")
             ids.add(c.id)
-            if not (c.support > 0 and c.age >= 0 and np.isfinite(c.duration)):
-                raise ValueError(f"component {c.id} has support {c.support}, age {c.age}, duration {c.duration}")
-            if np.shape(c.mean) != (d,) or np.shape(c.cov) != (d, d):
-                raise ValueError(f"component {c.id} has mean and covariance shapes {np.shape(c.mean)}, "
-                                 f"{np.shape(c.cov)}; the dimensions say {d} weights")
-            if not (np.isfinite(c.mean).all() and np.isfinite(c.cov).all()):
-                raise ValueError(f"component {c.id} has NaN or inf in its mean or covariance")
-            if not np.allclose(c.cov, c.cov.T, rtol=1e-9, atol=1e-12):
-                raise ValueError(f"covariance of component {c.id} is not symmetric")
-            try:
-                np.linalg.cholesky(c.cov + 1e-12 * np.trace(c.cov) / d * np.eye(d))
-            except np.linalg.LinAlgError:
-                raise ValueError(f"covariance of component {c.id} is not positive definite") from None
+            if not 1 <= c.age <= max(self.n_seen, 1):
+                raise ValueError(f"component {c.id} has age {c.age}; the library has seen {self.n_seen} "
+                                 f"demonstrations")
+            _check_cluster(c.cluster, d, f"component {c.id}")
+            if len(c.subclusters) != 2 or c.subclusters[0] is None:
+                raise ValueError(f"component {c.id} needs two sub-clusters (the second may be None)")
+            for j, sub in enumerate(c.subclusters):
+                if sub is not None:
+                    _check_cluster(sub, d, f"sub-cluster {j} of component {c.id}")
+            total = sum(s.support for s in c.subclusters if s is not None)
+            if abs(total - c.support) > 1e-6 * max(1.0, c.support):
+                raise ValueError(f"component {c.id} has support {c.support} but its sub-clusters {total}")
 
     @property
     def n_human(self) -> int:

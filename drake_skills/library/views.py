@@ -6,8 +6,13 @@ recognition (:class:`Recognition`) and the error of a motion that matches no ski
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Callable
 
 import numpy as np
+
+#: The answers of :meth:`SkillLibrary.recognize`.
+STATUSES = ("skill", "undecided", "unknown")
 
 
 class UnknownSkillError(RuntimeError):
@@ -28,13 +33,21 @@ class Component:
         s_k, the responsibility mass it has absorbed.
     weight : float
         alpha_k = s_k / sum_j s_j.
-    mean, cov : arrays, shapes (d,), (d, d)
-        The expert Gaussian over [w_h; w_r] (Eq. 8).
+    mean : array, shape (d,)
+        Mean of the stacked weights [w_h; w_r] of its demonstrations (Eq. 8).
     n_human : int
-        Number of leading human weights; the gating Gaussian (Eq. 7) is the
-        human block ``mean[:n_human], cov[:n_human, :n_human]``.
+        Number of leading human weights (the gating weights).
     duration : float
         Mean duration of its demonstrations in seconds.
+    path_length : float
+        Mean length of their normalized human paths (workspace units), by which a
+        prefix's phase is estimated.
+    cov : array, shape (d, d)
+        The expert covariance ``(kappa Sigma + S_k) / (kappa + s_k - 1)``: its own
+        scatter shrunk towards the shared within-skill covariance (computed on first use).
+    cov_gating : array, shape (n_human, n_human)
+        The covariance the gating judges a new motion with: the shared within-skill
+        covariance times ``1 + 1/s_k`` (the uncertainty of the mean added).
     """
 
     id: int
@@ -42,17 +55,27 @@ class Component:
     support: float
     weight: float
     mean: np.ndarray
-    cov: np.ndarray
     n_human: int
     duration: float
+    path_length: float
+    _cov: Callable = field(repr=False, default=None)
+    _cov_gating: Callable = field(repr=False, default=None)
 
     @property
     def mean_gating(self) -> np.ndarray:
         return self.mean[:self.n_human]
 
-    @property
+    @cached_property
+    def cov(self) -> np.ndarray:
+        c = self._cov()
+        c.setflags(write=False)
+        return c
+
+    @cached_property
     def cov_gating(self) -> np.ndarray:
-        return self.cov[:self.n_human, :self.n_human]
+        c = self._cov_gating()
+        c.setflags(write=False)
+        return c
 
 
 @dataclass(frozen=True)
@@ -70,25 +93,59 @@ class Update:
     merged: tuple[tuple[int, int], ...] = ()
     deleted: tuple[int, ...] = ()
     responsibilities: dict = field(default_factory=dict)
+    #: (kept, new) pairs: component ``kept`` split in two and ``new`` is its other half.
+    split: tuple[tuple[int, int], ...] = ()
+    #: Updated component id -> index (0, 1) of its sub-cluster the demonstration joined.
+    subcluster: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
 class Recognition:
-    """Result of :meth:`SkillLibrary.recognize` (Eq. 12)."""
+    """Result of :meth:`SkillLibrary.recognize` (Eq. 12).
 
-    #: k*, or None when no component explains the motion ("unknown").
+    ``status`` is "skill" (``component`` is its id), "undecided" (more than one skill
+    explains the motion and none is ``1 - decision_risk`` probable: wait for more of
+    it) or "unknown" (no skill explains it: ask for a demonstration).
+    """
+
+    #: k* when ``status == "skill"``, else None.
     component: int | None
     #: Component ids, aligned with the arrays below.
     ids: tuple[int, ...]
-    #: p(k | w_h) (Eq. 5); all zero when the library is empty.
+    #: p(k | w_h) (Eq. 5) over all components; all zero when the library is empty.
     responsibilities: np.ndarray
-    #: log p(w_h | k) under the floored gating covariance.
+    #: log p(w_h | k) under each component's predictive gating covariance.
     log_likelihoods: np.ndarray
     #: Squared Mahalanobis distance to each component.
     mahalanobis_sq: np.ndarray
-    #: Degrees of freedom of the chi-square test.
-    dof: int
+    #: Degrees of freedom of the chi-square test (per component for a prefix).
+    dof: int | np.ndarray
+    #: "skill", "undecided" or "unknown".
+    status: str = "unknown"
+    #: Estimated fraction of each component's motion the observation covers, shape (K,).
+    phases: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    #: p(k | motion) among the components that explain it (zero for the others).
+    posterior: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def unknown(self) -> bool:
-        return self.component is None
+        """No skill explains the motion (not merely undecided)."""
+        return self.status == "unknown"
+
+    @property
+    def best(self) -> int | None:
+        """The most probable component among those that explain the motion (None if unknown)."""
+        if self.status == "unknown" or not len(self.ids):
+            return None
+        return self.ids[int(np.argmax(self.posterior))]
+
+    @property
+    def confidence(self) -> float:
+        """Posterior of the best candidate (0 when unknown)."""
+        return float(np.max(self.posterior)) if self.posterior.size and self.status != "unknown" else 0.0
+
+    @property
+    def phase(self) -> float:
+        """Estimated fraction observed of the best candidate's motion (NaN when unknown)."""
+        b = self.best
+        return float(self.phases[self.ids.index(b)]) if b is not None and self.phases.size else float("nan")

@@ -92,20 +92,23 @@ def test_bad_files_give_clear_errors(lib, tmp_path):
     _rewrite(good, tmp_path / "newer.npz", meta={"schema_version": storage.SCHEMA_VERSION + 1})
     cases["newer.npz"] = "newer"
     with np.load(good) as z:
-        covs = z["covs"].copy()
+        pooled = z["pooled"].copy()
         means = z["means"].copy()
-    covs[0, 0, 1] += 1.0
-    _rewrite(good, tmp_path / "asym.npz", covs=covs)
+        factors = z["factors"].copy()
+    pooled[0, 1] += 1.0
+    _rewrite(good, tmp_path / "asym.npz", pooled=pooled)
     cases["asym.npz"] = "not symmetric"
     means[1, 2] = np.nan
     _rewrite(good, tmp_path / "nan.npz", means=means)
     cases["nan.npz"] = "NaN"
     _rewrite(good, tmp_path / "shape.npz", means=means[:, :-1])
-    cases["shape.npz"] = "shapes"
+    cases["shape.npz"] = "has shape"
+    _rewrite(good, tmp_path / "rank.npz", factors=factors[:, :-1])
+    cases["rank.npz"] = "'factors' has shape"
     _rewrite(good, tmp_path / "format.npz", meta={"format": "something else"})
     cases["format.npz"] = "not a drake-skills library"
-    np.savez(tmp_path / "pickled.npz", metadata=np.array([{"a": 1}], dtype=object), means=means, covs=covs)
-    cases["pickled.npz"] = "without pickle"
+    np.savez(tmp_path / "pickled.npz", metadata=np.array([{"a": 1}], dtype=object), means=means)
+    cases["pickled.npz"] = "Python objects"
     for name, msg in cases.items():
         with pytest.raises(ValueError, match=msg) as e:
             SkillLibrary.load(tmp_path / name)
@@ -120,19 +123,44 @@ def test_empty_library_round_trips(tmp_path):
     assert SkillLibrary.load(p).n_components == 0
 
 
-def test_version_1_file_keeps_its_raw_arc_length(lib, tmp_path):
-    """Schema 1 had no resample_tolerance: such a file loads with 0 (its behaviour); a schema 2 file keeps its value."""
-    good = tmp_path / "good.npz"
-    lib.save(good)
-    with np.load(good, allow_pickle=False) as z:
-        meta = json.loads(str(z["metadata"]))
-    cfg = {k: v for k, v in meta["config"].items() if k != "resample_tolerance"}
-    _rewrite(good, tmp_path / "v1.npz", meta={"schema_version": 1, "config": cfg})
-    old = SkillLibrary.load(tmp_path / "v1.npz")
-    assert old.config.resample_tolerance == 0.0
-    tolerant = SkillLibrary(LibraryConfig(resample_tolerance=0.1))
-    rng = np.random.default_rng(2)
-    for i in range(3):
-        tolerant.partial_fit(synthetic_demo(i, rng))
-    tolerant.save(tmp_path / "v2.npz")
-    assert SkillLibrary.load(tmp_path / "v2.npz").config.resample_tolerance == 0.1
+def _dense_file(lib, path, version):
+    """``lib`` written in the dense layout of schema 1-2 (means and covariances, the fixed-scale settings)."""
+    st = lib.state()
+    cfg = lib.config.dict()
+    cfg.update(sigma_init_human=0.5, sigma_init_robot=0.1, gating_floor=1.0, fast_forgetting=True)
+    if version < 2:
+        cfg.pop("resample_tolerance")
+    comps = lib.components
+    meta = {"format": storage.FORMAT, "schema_version": version, "config": cfg, "dim_human": st.dim_human,
+            "dim_robot": st.dim_robot, "next_id": st.next_id, "n_seen": st.n_seen, "history": list(st.history),
+            "components": [{"id": c.id, "age": c.age, "support": c.support, "duration": c.duration} for c in comps]}
+    np.savez(path, metadata=np.array(json.dumps(meta)), means=np.stack([c.mean for c in comps]),
+             covs=np.stack([c.cov for c in comps]))
+
+
+def test_schema_1_and_2_files_load_with_their_representation_and_the_same_answers(lib, tmp_path):
+    """Older files (dense covariances, the fixed Sigma_init scale) load: their arc length and basis settings are
+    kept (version 1 had no tolerance: 0), the retired settings dropped, the components and answers the same."""
+    for version in (1, 2):
+        p = tmp_path / f"v{version}.npz"
+        _dense_file(lib, p, version)
+        old = SkillLibrary.load(p)
+        assert old.config.resample_tolerance == (0.0 if version == 1 else lib.config.resample_tolerance)
+        assert [c.id for c in old.components] == [c.id for c in lib.components]
+        for a, b in zip(old.components, lib.components):
+            np.testing.assert_allclose(a.mean, b.mean)
+            assert a.age == b.age and a.support == b.support
+        rng = np.random.default_rng(2)
+        for task in range(3):
+            h = synthetic_demo(task, rng).human
+            assert old.recognize(h, observed_fraction=1.0).status in ("skill", "undecided")
+    bad = tmp_path / "bad.npz"
+    _dense_file(lib, bad, 2)
+    with np.load(bad) as z:
+        covs = z["covs"].copy()
+        meta = str(z["metadata"])
+    covs[0] = -np.eye(covs.shape[1])
+    np.savez(bad, metadata=np.array(meta), means=np.stack([c.mean for c in lib.components]), covs=covs)
+    with pytest.raises(ValueError, match="not positive definite") as e:
+        SkillLibrary.load(bad)
+    assert "bad.npz" in str(e.value)
