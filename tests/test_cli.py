@@ -127,11 +127,11 @@ def test_every_command_that_builds_a_library_takes_a_config(command, capsys):
 
 def test_learn_reads_the_library_part_of_a_sim_config(dataset, tmp_path):
     cfg = tmp_path / "sim.yaml"
-    cfg.write_text("seed: 5\nlibrary:\n  n_basis_robot: 12\n  gating_floor: 0.8\n")
+    cfg.write_text("seed: 5\nlibrary:\n  n_basis_robot: 12\n  prior_scale: 0.25\n")
     out = tmp_path / "lib.npz"
     assert main(["learn", str(dataset / "train"), "--out", str(out), "--config", str(cfg)]) == 0
     config = SkillLibrary.load(out).config
-    assert config.n_basis_robot == 12 and config.gating_floor == 0.8
+    assert config.n_basis_robot == 12 and config.prior_scale == 0.25
 
 
 def test_a_bad_config_is_an_error_naming_the_file(dataset, tmp_path, capsys):

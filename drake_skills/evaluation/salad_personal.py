@@ -26,7 +26,7 @@ import numpy as np
 from drake_skills.data.demonstration import Demonstration
 from drake_skills.data.workspace import Workspace
 from drake_skills.evaluation.common import Table, count_distribution, stream_rng
-from drake_skills.evaluation.labeled import CORRECT, UNKNOWN, LabeledLibrary, fractions_of
+from drake_skills.evaluation.labeled import CORRECT, UNKNOWN, WRONG, LabeledLibrary, fractions_of
 from drake_skills.evaluation.salad_data import SaladContext, SaladSettings
 from drake_skills.library.incremental import SkillLibrary
 from drake_skills.promp.preprocessing import resample_in_time, vertex_indices
@@ -257,7 +257,7 @@ def response_tables(s: SaladSettings, personal: list[PersonalTrial]):
     rows = []
     for i, f in enumerate(grid):
         o = cat["outcome"][:, i]
-        ok, ans = o == CORRECT, o != UNKNOWN
+        ok, ans = o == CORRECT, np.isin(o, [CORRECT, WRONG])
         rows.append([f, *fractions_of(o),
                      _nanstat(cat["rmse"][ok, i], np.mean), _nanstat(cat["rmse"][ok, i], np.median),
                      _nanstat(cat["prior_rmse"][ok, i], np.mean),

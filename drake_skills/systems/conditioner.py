@@ -92,7 +92,7 @@ def condition_robot(library: SkillLibrary, component: int, motion: ObservedMotio
     KeyError
         If ``component`` is not in the library.
     """
-    mean, cov = library.predict_robot(motion.samples, normalized=True, component=int(component), n_steps=n_steps)
+    mean, cov = library.predict_robot(motion.samples, 1.0, normalized=True, component=int(component), n_steps=n_steps)
     std = np.sqrt(np.maximum(np.diagonal(cov, axis1=1, axis2=2), 0.0))
     duration = float(library.component(int(component)).duration)
     return ConditionedTrajectory(int(component), mean, std, duration, float(start_time))

@@ -127,7 +127,7 @@ def recognize_motion(library: SkillLibrary, motion: ObservedMotion) -> tuple[int
     y = motion.samples
     if float(np.max(np.linalg.norm(y - y[0], axis=1))) <= 0.0:
         return None, {}
-    rec = library.recognize(y, normalized=True)
+    rec = library.recognize(y, normalized=True, observed_fraction=1.0)
     resp = {int(k): float(r) for k, r in zip(rec.ids, rec.responsibilities)}
     return (None if rec.component is None else int(rec.component)), resp
 

@@ -20,7 +20,7 @@ def reports(tmp_path_factory):
 def test_one_row_per_configuration_with_fractions_that_sum_to_one(reports):
     rep, _ = reports
     t = rep.tables["sensitivity"]
-    assert t.column("configuration") == ["default", "tolerance 0.1"]
+    assert t.column("configuration") == list(CONFIGS)[:2]
     for name, row in rep.summary["configs"].items():
         assert 0.0 <= row["letters_one_per_shape"] <= 1.0
         parts = [row["salad_correct"], row["salad_wrong"], row["salad_unknown"]]
@@ -38,6 +38,8 @@ def test_results_do_not_depend_on_the_number_of_workers(reports):
 def test_bad_overrides_fail_before_any_work():
     with pytest.raises(ValueError, match="gating_flor"):
         replace(SensitivitySettings.quick(), configs={"typo": {"gating_flor": 0.5}})
+    with pytest.raises(ValueError, match="are gone"):
+        replace(SensitivitySettings.quick(), configs={"old": {"gating_floor": 0.5}})
     with pytest.raises(ValueError, match="n_train"):
         replace(SensitivitySettings.quick(), n_train=9)
 

@@ -35,19 +35,19 @@ decision:
 
 
 def test_a_file_of_library_fields_alone_is_the_library_config(tmp_path):
-    p = _write(tmp_path, "gating_floor: 0.6\nsigma_init_human: 0.4\n")
-    assert load_library_config(p) == LibraryConfig(gating_floor=0.6, sigma_init_human=0.4)
+    p = _write(tmp_path, "prior_scale: 0.4\nprior_floor: 0.2\n")
+    assert load_library_config(p) == LibraryConfig(prior_scale=0.4, prior_floor=0.2)
     assert load_config(p).seed == 0
     assert load_config(None) == SimConfig()
 
 
 @pytest.mark.parametrize("text, message", [
-    ("library:\n  gating_floor: -1.0\n", "gating_floor must be positive"),
+    ("library:\n  prior_scale: -1.0\n", "prior_scale must be positive"),
     ("decision:\n  timeout: 0.0\n", "timeout must be positive"),
     ("trials: 0\n", "trials"),
     ("library:\n  novelty_test: magic\n", "novelty_test"),
     ("library:\n  workspace: {lower: [0.0], upper: [0.0]}\n", "empty along axes"),
-    ("seed: 1\ngating_floor: 0.5\n", "under 'library:'"),
+    ("seed: 1\nprior_scale: 0.5\n", "under 'library:'"),
     ("library:\n  n_basis: 3\n", "n_basis"),
     ("- 1\n- 2\n", "not a mapping"),
     ("library:\n  workspace: {lower: [], upper: []}\n", "too short"),
