@@ -36,7 +36,7 @@ from drake_skills.data.demonstration import Demonstration
 from drake_skills.data.interaction import COLUMNS, load_interactions
 from drake_skills.data.workspace import Workspace
 from drake_skills.evaluation.common import EvalReport, Table, run_trials, trial_rng
-from drake_skills.evaluation.labeled import CORRECT, UNKNOWN, WRONG, LabeledLibrary, outcome_fractions
+from drake_skills.evaluation.labeled import LabeledLibrary, outcome_fractions
 from drake_skills.library.incremental import LibraryConfig
 from drake_skills.promp.preprocessing import arc_length, resample_in_time, vertex_indices
 
@@ -331,10 +331,9 @@ def evaluate_interaction(settings: InteractionSettings, *, workers: int = 1, pro
 
     D2 = np.stack([t.d2_min for t in trials])
     thr = np.stack([t.d2_threshold for t in trials])
-    rows = [[d.name, d.task, float(np.mean(out[:, i] == CORRECT)), float(np.mean(out[:, i] == WRONG)),
-             float(np.mean(out[:, i] == UNKNOWN)), float(np.median(D2[:, i])), float(np.median(thr[:, i]))]
+    rows = [[d.name, d.task, *_fractions(out[:, i]), float(np.median(D2[:, i])), float(np.median(thr[:, i]))]
             for i, d in enumerate(ctx.test)]
-    per_test = Table(["interaction", "task", "correct", "wrong", "unknown", "median smallest d^2", "threshold"],
+    per_test = Table(["interaction", "task", *OUTCOMES, "median smallest d^2", "threshold"],
                      rows, caption="Per test interaction, over orders: the squared Mahalanobis distance to the "
                                    "closest component against the novelty threshold (chi-square quantile).")
 
