@@ -20,6 +20,7 @@ COMMAND_MODULES = [
     "generate",
     "plot_demos",
     "evaluate",
+    "tune",
     "bench",
 ]
 

@@ -11,7 +11,7 @@ from drake_skills.data.demos import load_demo, save_npz
 from drake_skills.scenario.salad import TASKS
 
 
-COMMANDS = ["demo", "learn", "recognize", "generate", "plot-demos", "eval", "bench"]
+COMMANDS = ["demo", "learn", "recognize", "generate", "plot-demos", "eval", "bench", "tune"]
 
 
 def test_parser_has_the_design_commands():
@@ -113,7 +113,7 @@ def test_missing_directory_is_a_clear_error(tmp_path, capsys):
 
 
 LIBRARY_COMMANDS = [["demo"], ["learn", "DIR"], ["bench"], ["eval", "letters"], ["eval", "salad"],
-                    ["eval", "sensitivity"]]
+                    ["eval", "sensitivity"], ["eval", "interaction"], ["tune", "DIR"]]
 
 
 @pytest.mark.parametrize("command", LIBRARY_COMMANDS, ids=lambda c: " ".join(c[:2]))
