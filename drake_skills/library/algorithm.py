@@ -93,6 +93,11 @@ class Components:
     #: (K, 2) their supports (0 for an empty one)
     sub_support: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
+    @property
+    def path_lengths(self) -> np.ndarray:
+        """(K,) mean path lengths of the components' demonstrations."""
+        return np.array([c.cluster.path_length for c in self.items], float)
+
     @classmethod
     def of(cls, items: Sequence[ComponentModel], n_human: int) -> "Components":
         work = _Work(cls((), np.zeros((0, n_human)), np.zeros(0), np.zeros(0, dtype=np.int64),
@@ -164,16 +169,17 @@ class _Work:
 
 @dataclass(frozen=True)
 class Metric:
-    """The gating metric: ``Sigma`` (h, h), the inverse of its Cholesky factor and its log-determinant."""
+    """The gating metric: ``Sigma`` (h, h), its Cholesky factor and that factor's inverse, its log-determinant."""
 
     cov: np.ndarray
     inv_chol: np.ndarray
     logdet: float
+    chol: np.ndarray
 
     @classmethod
     def of(cls, cov: np.ndarray) -> "Metric":
         L = np.linalg.cholesky(cov)
-        return cls(cov, np.linalg.inv(L), float(2.0 * np.sum(np.log(np.diag(L)))))
+        return cls(cov, np.linalg.inv(L), float(2.0 * np.sum(np.log(np.diag(L)))), L)
 
     def whiten(self, x: np.ndarray) -> np.ndarray:
         """``L^{-1} x`` for rows of ``x`` (n, h) or one (h,)."""
