@@ -42,12 +42,18 @@ def _row(r) -> str:
     return (f"{r.trial:5d}  {r.task:9s}  {what:34s}  {r.outcome:6s}  {frac:>6s}  {lead:>6s}  {flange:>9s}")
 
 
+def _result(d: dict):
+    from drake_skills.sim.demo import TrialResult
+
+    return TrialResult(**d)
+
+
 def run(args: argparse.Namespace) -> int:
     from drake_skills.scenario.salad import generate_subject
     from drake_skills.sim.config import load_config
     from drake_skills.sim.demo import run_collaboration
     from drake_skills.sim.diagram import make_meshcat
-    from drake_skills.commands.demo_plots import plot_trial
+    from drake_skills.commands.demo_plots import legend_html, plot_trial
 
     cfg = load_config(args.config)
     overrides = {"seed": args.seed, "subject": args.subject}
@@ -82,9 +88,10 @@ def run(args: argparse.Namespace) -> int:
           f"{summary.asked} (unknown {summary.unknown}, undecided at rest {summary.undecided_at_rest}); "
           f"components: {summary.components}")
     print(f"taught tasks: {'n/a' if not math.isfinite(acc) else f'{100 * acc:.0f}%'} right of "
-          f"{summary.known_trials} trials; wrong commits revised in time: "
-          f"{summary.wrong_commits - summary.wrong}; committed at {100 * summary.mean_decision_fraction:.0f}% of "
-          f"the path on average, {summary.mean_lead_s:+.2f} s before the person stopped")
+          f"{summary.known_trials} trials; wrong commits revised in time: {summary.wrong_commits - summary.wrong}")
+    if math.isfinite(summary.mean_decision_fraction):
+        print(f"the robot committed at {100 * summary.mean_decision_fraction:.0f}% of the person's path on average, "
+              f"{summary.mean_lead_s:+.2f} s before the person stopped")
     print(f"flange error at handover (right skill): mean {summary.mean_flange_error_cm:.1f} cm, "
           f"max {summary.max_flange_error_cm:.1f} cm; joint tracking RMS {summary.mean_tracking_rms_rad:.4f} rad; "
           f"joint limits {'held' if summary.within_limits else 'VIOLATED'}")
@@ -101,6 +108,9 @@ def run(args: argparse.Namespace) -> int:
             print("stopped")
         return 0
     html = args.out / "demo.html"
-    html.write_text(meshcat.StaticHtml())
+    page = meshcat.StaticHtml()
+    legend = legend_html([_result(r) for r in summary.results])
+    page = page.replace("</body>", legend + "</body>", 1) if "</body>" in page else page + legend
+    html.write_text(page)
     print(f"wrote {args.out / 'summary.json'}, {args.out / 'library.npz'}, {html}")
     return 0

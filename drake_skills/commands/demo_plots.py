@@ -46,3 +46,58 @@ def plot_trial(result, outcome, path: Path) -> Path:
     fig.savefig(path, dpi=80)
     plt.close(fig)
     return path
+
+
+#: Opens the recording at ``#t=SECONDS`` (and on every change of the address's fragment): pauses the
+#: animation and seeks there, once the recorded commands are loaded.
+SEEK_SCRIPT = """<script>
+(function () {
+  function seek() {
+    var m = location.hash.match(/t=([0-9.]+)/);
+    if (!m) return;
+    var t = parseFloat(m[1]), tries = 0;
+    var timer = setInterval(function () {
+      tries += 1;
+      var a = (typeof viewer !== "undefined") ? viewer.animator : null;
+      if (a && a.actions && a.actions.length) {
+        a.play(); a.pause(); a.seek(t); a.display_progress(t); clearInterval(timer);
+      } else if (tries > 400) { clearInterval(timer); }
+    }, 25);
+  }
+  window.addEventListener("hashchange", seek);
+  seek();
+})();
+</script>"""
+
+
+def legend_html(results) -> str:
+    """A fixed panel for the meshcat recording: one row per trial (time in the recording, task, answer, confidence).
+
+    The colour swatch is the one the wrist and the lamp take for that answer, so a
+    viewer can find each trial on the timeline and read what the robot decided.
+    """
+    from drake_skills.sim.wrist_marker import PENDING_RGBA, UNDECIDED_RGBA, UNKNOWN_RGBA, skill_rgba
+
+    def css(rgba):
+        return "rgb({:.0f},{:.0f},{:.0f})".format(*(255 * c for c in rgba[:3]))
+
+    rows = []
+    for r in results:
+        if r.component is not None:
+            colour = skill_rgba(r.component)
+        else:
+            colour = {"unknown": UNKNOWN_RGBA, "undecided": UNDECIDED_RGBA}.get(r.status, PENDING_RGBA)
+        answer = r.decision + (f" ({r.recognized_task})" if r.recognized_task else "")
+        commit = "" if not math.isfinite(r.decision_fraction) else f"{100 * r.decision_fraction:.0f}%"
+        t_answer = r.start_time + (r.decision_delay if math.isfinite(r.decision_delay) else 0.0) + 0.05
+        rows.append(f"<tr><td><a href='#t={t_answer:.2f}'>{r.trial}</a></td>"
+                    f"<td>{r.start_time:.1f}-{r.end_time:.1f}</td><td>{r.task}</td>"
+                    f"<td><span style='display:inline-block;width:10px;height:10px;background:{css(colour)}'>"
+                    f"</span> {answer}</td><td>{r.confidence:.2f}</td><td>{commit}</td><td>{r.outcome}</td></tr>")
+    return ("<div id='drake-skills-legend' style='position:fixed;left:8px;bottom:8px;max-height:45%;"
+            "overflow:auto;background:rgba(255,255,255,0.88);font:11px sans-serif;padding:4px;z-index:10'>"
+            "<b>drake-skills demo</b> (grey: observing; colour: the committed skill; magenta: unknown; amber: "
+            "undecided; the bar: confidence). Click a trial to see its final answer; open the page with "
+            "<code>#t=SECONDS</code> to start there.<table style='border-collapse:collapse'><tr><th>trial</th>"
+            "<th>time (s)</th><th>task</th><th>answer</th><th>p</th><th>commit</th><th>result</th></tr>"
+            + "".join(rows) + "</table></div>" + SEEK_SCRIPT)

@@ -105,6 +105,8 @@ class TrialResult:
     commits: list
     #: A skill of another task was committed at some point (revised or not).
     wrong_commit: bool
+    #: Probability of the best candidate at the final answer (0 when nothing explained the motion).
+    confidence: float
     #: How often the committed skill was changed or given up.
     revisions: int
     #: Simulation time span of the trial (s).
@@ -333,10 +335,11 @@ class CollaborationSim:
         wrong_commit = any(lab != demo.task for lab in labels)
         decision = "unknown" if outcome.status == "unknown" else (
             "undecided" if outcome.status == "undecided" or k is None else f"skill {k}")
+        confidence = float(outcome.beliefs[-1].confidence) if outcome.beliefs else 0.0
         return TrialResult(index + 1, str(demo.task), k, outcome.status, decision, recognized_task, task_known,
                            result, result == "right", False, flange_error, tracking, displacement, within, speed,
-                           outcome.decision_time, fraction, lead, labels, bool(wrong_commit), outcome.revisions,
-                           outcome.start_time, outcome.end_time)
+                           outcome.decision_time, fraction, lead, labels, bool(wrong_commit), confidence,
+                           outcome.revisions, outcome.start_time, outcome.end_time)
 
 
 def trial_stream(demos: list[Demonstration], n_trials: int, rng: np.random.Generator) -> list[Demonstration]:
@@ -408,6 +411,10 @@ def run_collaboration(config: SimConfig, demos: list[Demonstration], workspace: 
     wall = _time.perf_counter() - wall0
     if meshcat is not None:
         meshcat.StopRecording()
+        rec = meshcat.get_mutable_recording()
+        rec.set_autoplay(True)  # the page plays the run once and stays at its end
+        rec.set_loop_mode(rec.LoopMode.kLoopOnce)
+        rec.set_clamp_when_finished(True)
         meshcat.PublishRecording()
     known = [r for r in results if r.task_known]
     flange = np.array([r.flange_error_cm for r in results if r.correct and math.isfinite(r.flange_error_cm)])

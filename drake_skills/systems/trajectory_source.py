@@ -135,7 +135,7 @@ def blend_plan(traj: ConditionedTrajectory, now: float, q0: np.ndarray, v0: np.n
     ``qd(now) = v0``; then a cubic with continuous second derivatives through knots
     of that curve (start velocity ``v0``, end velocity 0), positions clipped to the
     limits minus ``margin``. If ``vmax`` is given and the plan is faster, the part
-    after ``now`` is slowed down (time stretched) until it is not.
+    after ``now`` and the blend are slowed down (time stretched) until it is not.
 
     Parameters
     ----------
@@ -153,7 +153,7 @@ def blend_plan(traj: ConditionedTrajectory, now: float, q0: np.ndarray, v0: np.n
     t_traj = traj.start_time + duration * np.linspace(0.0, 1.0, n)
     end = max(t_traj[-1], now + blend_time)
     stretch = 1.0
-    for _ in range(8):
+    for _ in range(12):
         span = (end - now) * stretch
         times = now + span * np.linspace(0.0, 1.0, max(n, 20))
         # the trajectory's own clock, slowed by `stretch` after now
@@ -163,8 +163,9 @@ def blend_plan(traj: ConditionedTrajectory, now: float, q0: np.ndarray, v0: np.n
         p_now = np.array([np.interp(now, t_traj, mean[:, j]) for j in range(mean.shape[1])])
         p_dot = (np.array([np.interp(now + dt, t_traj, mean[:, j]) for j in range(mean.shape[1])]) - p_now) / dt
         p_dot /= stretch
-        sig = (times - now) / blend_time
-        q = p + np.outer(_quintic_fade(sig), q0 - p_now) + np.outer(_velocity_bump(sig, blend_time), v0 - p_dot)
+        T_b = blend_time * stretch
+        sig = (times - now) / T_b
+        q = p + np.outer(_quintic_fade(sig), q0 - p_now) + np.outer(_velocity_bump(sig, T_b), v0 - p_dot)
         q = np.clip(q, np.asarray(lower) + margin, np.asarray(upper) - margin)
         q[0] = q0
         plan = _fit(times, q, v0, traj)
