@@ -255,7 +255,7 @@ def _new_component(cid: int, created: int, w, duration: float, path_length: floa
 
 
 def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: float, path_length: float, *,
-            n_human: int, config, rule: NoveltyRule, next_id: int, demo_index: int) -> Step:
+            n_human: int, config, rule: NoveltyRule, next_id: int, demo_index: int, fit_residual: float = 0.0) -> Step:
     """Algorithm 1 for one demonstration with stacked weights ``w`` (d,) = ``[w_h; w_r]``.
 
     Parameters
@@ -277,10 +277,12 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
         Id of a component created now.
     demo_index : int
         Index of the demonstration in the stream; ages are counted from it.
+    fit_residual : float
+        Mean squared residual of the demonstration's human path around its basis fit.
     """
     h = n_human
     work = _Work(comps, h)
-    scale = scale.count(w)
+    scale = scale.count(w, fit_residual)
     created, updated, merged, split, deleted = [], [], [], [], []
     history: list[dict] = []
     resp: dict = {}

@@ -53,7 +53,7 @@ from drake_skills.library.algorithm import (ComponentModel, Components, fold_in,
 from drake_skills.library.config import NOVELTY_TESTS, LibraryConfig, WorkspaceBounds
 from drake_skills.library.novelty import novelty_rule
 from drake_skills.library.prefix import score_at_phase, score_prefix
-from drake_skills.library.scale import Cluster, SharedScale, shared_covariance
+from drake_skills.library.scale import Cluster, SharedScale, observation_noise, shared_covariance
 from drake_skills.library.state import ComponentState, LibraryState
 from drake_skills.library.views import Component, Recognition, UnknownSkillError, Update
 from drake_skills.promp.basis import ridge_weights, trajectory_covariance
@@ -240,7 +240,7 @@ class SkillLibrary:
         return InteractionProMP.from_moments(
             np.array(c.mean), self._expert_cov(c), self.dim_human_, self.dim_robot_,
             basis_human=cfg.basis_human, basis_robot=cfg.basis_robot, ridge=cfg.ridge,
-            observation_noise=cfg.observation_noise)
+            observation_noise=self._noise())
 
     def _check_fitted(self):
         if self.dim_human_ is None:
@@ -395,10 +395,14 @@ class SkillLibrary:
         path = self.path_length(demo.human, workspace=workspace, where=where)
         n = self._n_seen
         h = demo.dim_human * self.config.n_basis_human
+        cfg = self.config
+        y_h = self.human_samples(demo.human, workspace=workspace, where=where)
+        fit = cfg.basis_human.phi_uniform(y_h.shape[0]) @ w[:h].reshape(demo.dim_human, -1).T
+        fit_residual = float(np.mean((y_h - fit) ** 2))
         comps = self._components if self._scale is not None else Components.of([], h)
         scale = self._scale if self._scale is not None else SharedScale.empty(w.shape[0])
         step = fold_in(comps, scale, w, demo.duration, path, n_human=h, config=self.config, rule=self._rule,
-                       next_id=self._next_id, demo_index=n)
+                       next_id=self._next_id, demo_index=n, fit_residual=fit_residual)
         # commit: nothing above touched self
         self._components, self._scale = step.components, step.scale
         self._history.extend(step.history)
@@ -500,7 +504,7 @@ class SkillLibrary:
             logp, d2 = gating_scores(w_h, comps, metric)
             return self._decide(logp, d2, h, np.ones(len(comps)))
         logp, d2, dof = score_at_phase(y, observed_fraction, comps.means_h, 1.0 + 1.0 / comps.support, metric.chol,
-                                       cfg.basis_human, cfg.observation_noise, self._prefix_cache(metric))
+                                       cfg.basis_human, self._noise(), self._prefix_cache(metric))
         return self._decide(logp, d2, dof, np.full(len(comps), observed_fraction))
 
     def _recognize_prefix(self, y, length: float) -> Recognition:
@@ -515,7 +519,7 @@ class SkillLibrary:
         m = max(2, int(round(cfg.n_samples * min(1.0, float(np.median(np.minimum(guess, 1.0)))))))
         ys = _resample_path(y, m, cfg.resample_tolerance)
         sc = score_prefix(ys, guess, comps.means_h, 1.0 + 1.0 / comps.support, metric.chol, cfg.basis_human,
-                          cfg.observation_noise, self._prefix_cache(metric))
+                          self._noise(), self._prefix_cache(metric))
         return self._decide(sc.log_likelihoods, sc.mahalanobis_sq, sc.dof, sc.phases)
 
     def predict_robot(self, human, observed_fraction: float | None = None, *, workspace: Workspace | None = None,
@@ -572,11 +576,23 @@ class SkillLibrary:
         Phi_o = cfg.basis_human.phi(np.linspace(0.0, f, y.shape[0]))
         h, n = self.n_human, n_steps or cfg.n_samples
         # Eq. (13), keeping only the robot block of the posterior
-        mean_w, cov_w = condition_on_observations(c.mean, self._expert_cov(c), Phi_o, y, cfg.observation_noise,
+        mean_w, cov_w = condition_on_observations(c.mean, self._expert_cov(c), Phi_o, y, self._noise(),
                                                   start=h)
         mean_r = cfg.basis_robot.phi_uniform(n) @ mean_w.reshape(self.dim_robot_, -1).T
         cov_r = trajectory_covariance(cov_w, cfg.basis_robot, self.dim_robot_, n_steps=n)
         return mean_r, cov_r
+
+    def observation_noise(self) -> float:
+        """The variance of an observed human sample prefix recognition and conditioning use (normalized units^2).
+
+        ``config.observation_noise`` or, if larger, the mean residual of the demonstrations'
+        paths around their basis fits (:func:`~drake_skills.library.scale.observation_noise`).
+        """
+        self._check_fitted()
+        return self._noise()
+
+    def _noise(self) -> float:
+        return observation_noise(self._scale, self.config.observation_noise)
 
     def _prefix_cache(self, metric) -> dict:
         """Eigendecompositions of prefix recognition for the current scale (emptied when the library learns)."""
@@ -605,7 +621,7 @@ class SkillLibrary:
         m = max(2, int(round(cfg.n_samples * min(1.0, guess))))
         ys = _resample_path(y, m, cfg.resample_tolerance)
         sc = score_prefix(ys, np.array([guess]), c.mean[None, :self.n_human], np.array([1.0 + 1.0 / c.support]),
-                          metric.chol, cfg.basis_human, cfg.observation_noise, self._prefix_cache(metric))
+                          metric.chol, cfg.basis_human, self._noise(), self._prefix_cache(metric))
         return float(sc.phases[0])
 
     # ---------------------------------------------------------------- storage

@@ -24,7 +24,8 @@ effective degrees of freedom), which the tests check this against.
 The phase of component ``k`` is the grid phase of highest likelihood within a band
 around ``path length observed / component's mean path length`` (the path-length
 estimate; the band, :data:`PHASE_BAND`, allows for paths 1.5 times shorter or longer
-than the mean).
+than the mean); its evidence for the posterior over components is the likelihood
+averaged over the phases of its band (the phase is marginalized, not maximized).
 """
 from __future__ import annotations
 
@@ -32,6 +33,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+from scipy.special import logsumexp
 
 from drake_skills.promp.basis import GaussianBasis
 
@@ -157,7 +159,11 @@ def score_prefix(y: np.ndarray, guess: np.ndarray, means_h: np.ndarray, inflate:
     wanted[np.arange(K), np.abs(grid[None, :] - g[:, None]).argmin(axis=1)] = True
     cols = np.flatnonzero(wanted.any(axis=0))
     ll, d2, dof = score_phases(y, tuple(grid[cols]), means_h, inflate, chol, basis, noise_var, cache)
-    masked = np.where(wanted[:, cols].T, ll, -np.inf)         # (J', K)
+    mask = wanted[:, cols].T                                  # (J', K)
+    masked = np.where(mask, ll, -np.inf)
     best = masked.argmax(axis=0)
     k = np.arange(K)
-    return PrefixScores(ll[best, k], d2[best, k], dof[best, k], grid[cols][best])
+    # the phase is not known: a component's evidence is its likelihood averaged over the phases it
+    # allows (uniform), not the best of them, which would favour the components that allow many
+    marginal = logsumexp(masked, axis=0) - np.log(mask.sum(axis=0))
+    return PrefixScores(marginal, d2[best, k], dof[best, k], grid[cols][best])
