@@ -33,9 +33,9 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy.special import logsumexp
 
 from drake_skills.promp.basis import GaussianBasis
+from drake_skills.promp.gaussian import logsumexp
 
 _LOG_2PI = np.log(2.0 * np.pi)
 #: Phases tried: 1/20 ... 1 in steps of 1/20.
