@@ -210,9 +210,20 @@ class SkillLibrary:
         return self._shared_cov()[:h, :h]
 
     def _expert_cov(self, c: ComponentModel) -> np.ndarray:
-        k = self.config.expert_prior
-        C = (k * self._shared_cov() + c.cluster.scatter) / (k + c.support - 1.0)
-        return 0.5 * (C + C.T)
+        """``(kappa Sigma + S_k) / (kappa + s_k - 1)``, kept until the library learns (a d x d product each)."""
+        if getattr(self, "_expert_cache", (None,))[0] is not self._scale:
+            self._expert_cache = (self._scale, {})
+        cache = self._expert_cache[1]
+        key = id(c.cluster)
+        if key not in cache or cache[key][0] is not c.cluster:
+            k = self.config.expert_prior
+            C = (k * self._shared_cov() + c.cluster.scatter) / (k + c.support - 1.0)
+            C = 0.5 * (C + C.T)
+            C.setflags(write=False)
+            if len(cache) >= 64:  # a few d x d matrices, not one per component of a large library
+                cache.pop(next(iter(cache)))
+            cache[key] = (c.cluster, C)
+        return cache[key][1]
 
     def as_mixture(self, part: str = "gating"):
         """The library as a Gaussian mixture ``(weights (K,), means (K, d), covs (K, d, d))``.
@@ -473,15 +484,23 @@ class SkillLibrary:
         if not others.size:
             return out
         block = slice(h, None) if self.has_robot else slice(0, h)
-        S = self._shared_cov()[block, block] * (1.0 + 1.0 / comps.support[best])
-        Linv = np.linalg.inv(np.linalg.cholesky(S))
+        Linv = self._response_whitener()
         mb = comps.items[best].mean[block]
         diff = np.stack([comps.items[j].mean[block] - mb for j in others]) @ Linv.T
-        d2 = np.einsum("ij,ij->i", diff, diff)
-        dof = S.shape[0]
+        d2 = np.einsum("ij,ij->i", diff, diff) / (1.0 + 1.0 / comps.support[best])
+        dof = Linv.shape[0]
         from drake_skills.library.novelty import chi2_ppf
         out[others] = d2 <= chi2_ppf(self.config.novelty_quantile, dof)
         return out
+
+    def _response_whitener(self) -> np.ndarray:
+        """Inverse Cholesky factor of the shared covariance of the responses (robot weights; human for letters)."""
+        if getattr(self, "_response_cache", (None,))[0] is not self._scale:
+            h = self.n_human
+            block = slice(h, None) if self.has_robot else slice(0, h)
+            L = np.linalg.cholesky(self._shared_cov()[block, block])
+            self._response_cache = (self._scale, np.linalg.inv(L))
+        return self._response_cache[1]
 
     def _recognize_fixed(self, y, observed_fraction: float) -> Recognition:
         """Eq. (12) on preprocessed human samples ``y`` evenly spaced in phase over ``[0, observed_fraction]``."""
