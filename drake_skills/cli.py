@@ -21,6 +21,7 @@ COMMAND_MODULES = [
     "plot_demos",
     "evaluate",
     "bench",
+    "control",
 ]
 
 

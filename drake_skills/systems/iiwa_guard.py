@@ -21,7 +21,7 @@ machines).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -70,10 +70,19 @@ class GuardLimits:
         for name, a in (("lower", lower), ("upper", upper), ("v_max", v_max)):
             a.setflags(write=False)
             object.__setattr__(self, name, a)
+        # what guard_step uses, computed once
+        object.__setattr__(self, "q_min", lower + self.margin)
+        object.__setattr__(self, "q_max", upper - self.margin)
+        object.__setattr__(self, "step_max", v_max * self.period)
 
     @property
     def n(self) -> int:
         return int(self.lower.shape[0])
+
+    #: lower + margin, upper - margin, v_max * period (set in __post_init__).
+    q_min: np.ndarray = field(init=False, repr=False, compare=False)
+    q_max: np.ndarray = field(init=False, repr=False, compare=False)
+    step_max: np.ndarray = field(init=False, repr=False, compare=False)
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,7 +138,8 @@ def status_received(q_measured: np.ndarray, status_time: float) -> bool:
     status before it initializes (:func:`~drake_skills.sim.lcm_controller.receive_first_messages`);
     this is the second check.
     """
-    return bool(status_time != 0.0 or np.any(q_measured != 0.0)) and bool(np.isfinite(q_measured).all())
+    finite = bool(np.isfinite(q_measured).all())
+    return finite and (status_time != 0.0 or bool(q_measured.any()))
 
 
 def guard_step(state: GuardState, time: float, q_measured: np.ndarray, status_time: float, q_desired: np.ndarray,
@@ -153,29 +163,28 @@ def guard_step(state: GuardState, time: float, q_measured: np.ndarray, status_ti
     -------
     GuardState
     """
+    status_t, arrival = state.status_time, state.arrival_time
     received = status_received(q_measured, status_time)
-    if received and status_time != state.status_time:
-        state = replace(state, status_time=float(status_time), arrival_time=float(time))
-    if state.command is None:
-        if not received:
-            return state  # nothing seen yet: nothing to command
-        state = replace(state, command=np.clip(q_measured, limits.lower + limits.margin,
-                                               limits.upper - limits.margin))
+    if received and status_time != status_t:
+        status_t, arrival = float(status_time), float(time)
     q = state.command
-    stale = state.status_age(time) > limits.stale_timeout + 1e-9
-    holding = state.holding
+    if q is None:
+        if not received:
+            return GuardState(None, status_t, arrival, state.holding, state.limited, state.stale_events)
+        q = np.minimum(np.maximum(q_measured, limits.q_min), limits.q_max)
+    stale = not time - arrival <= limits.stale_timeout + 1e-9  # NaN arrival (none yet) is stale
+    holding, stale_events = state.holding, state.stale_events
     if stale and not holding:
-        state = replace(state, stale_events=state.stale_events + 1)
-        holding = True
+        holding, stale_events = True, stale_events + 1
     elif holding and not stale and float(np.max(np.abs(q_desired - q))) <= limits.resume_tolerance:
         holding = False
-    target = q if holding else np.clip(np.asarray(q_desired, float), limits.lower + limits.margin,
-                                       limits.upper - limits.margin)
-    step_max = limits.v_max * limits.period
-    step = np.clip(target - q, -step_max, step_max)
-    clipped = not holding and not np.array_equal(target, q_desired)
-    limited = state.limited + int(clipped or not np.array_equal(step, target - q))
-    return replace(state, command=q + step, holding=holding, limited=limited)
+    if holding:
+        return GuardState(q, status_t, arrival, True, state.limited, stale_events)
+    target = np.minimum(np.maximum(q_desired, limits.q_min), limits.q_max)
+    delta = target - q
+    step = np.minimum(np.maximum(delta, -limits.step_max), limits.step_max)
+    changed = not (target == q_desired).all() or not (step == delta).all()
+    return GuardState(q + step, status_t, arrival, False, state.limited + changed, stale_events)
 
 
 class IiwaCommandGuard(LeafSystem):
