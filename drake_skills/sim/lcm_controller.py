@@ -2,12 +2,15 @@
 
 ::
 
-    IIWA_STATUS ─▶ LcmSubscriberSystem ─▶ IiwaStatusReceiver ─ [q; v] ──────────▶ add_controller(...)
-                   (lcmt_iiwa_status)          │ q, time                          (normalizer, gating,
-    DRAKE_SKILLS_WRIST ─▶ LcmSubscriberSystem ─┼─▶ WristSignalReceiver ─ wrist ─▶  conditioner, trajectory
-                   (lcmt_drake_signal)         ▼                                   source, trial monitor)
-                                         IiwaCommandGuard ◀── desired_state ────────────┘
-                                               │ position (limited; frozen on a stale status)
+    IIWA_STATUS ─▶ LcmSubscriberSystem ─▶ IiwaStatusReceiver
+                   (lcmt_iiwa_status)          │ q, v, time
+                                               ▼
+                                         IiwaCommandGuard ── measured_state [q; v] ──▶ add_controller(...)
+                                               ▲      │                              (normalizer, gating,
+    DRAKE_SKILLS_WRIST ─▶ LcmSubscriberSystem ─┼─▶ WristSignalReceiver ── wrist ──▶  conditioner, trajectory
+                   (lcmt_drake_signal)         │      │                               source, trial monitor)
+                                               └──────┼──── desired_state ◀────────────────┘
+                                                      │ position (limited; frozen on a stale status)
     IIWA_COMMAND ◀── LcmPublisherSystem ◀── IiwaCommandSender (position only)
                    (lcmt_iiwa_command, every command_period)
 
@@ -36,7 +39,6 @@ from pydrake.math import RigidTransform
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, Diagram, DiagramBuilder
 from pydrake.systems.lcm import LcmInterfaceSystem, LcmPublisherSystem, LcmSubscriberSystem
-from pydrake.systems.primitives import Multiplexer
 
 from drake_skills.data.workspace import Workspace
 from drake_skills.library.incremental import SkillLibrary
@@ -57,8 +59,6 @@ class LcmControllerHandles:
     guard: IiwaCommandGuard
     status_subscriber: LcmSubscriberSystem
     status_receiver: IiwaStatusReceiver
-    #: [q; v] (14,) from the status receiver's outputs.
-    measured_state: Multiplexer
     wrist_subscriber: LcmSubscriberSystem
     wrist_receiver: WristSignalReceiver
     command_sender: IiwaCommandSender
@@ -115,8 +115,6 @@ def add_lcm_controller(builder: DiagramBuilder, config: SimConfig, *, library: S
     receiver = builder.AddSystem(WristSignalReceiver(channel=cfg.wrist_channel))
     receiver.set_name("wrist_signal_receiver")
     n = guard.limits.n
-    state = builder.AddSystem(Multiplexer([n, n]))
-    state.set_name("measured_state")
     sender = builder.AddSystem(IiwaCommandSender(n, IiwaControlMode.kPositionOnly))
     sender.set_name("iiwa_command_sender")
     command_pub = builder.AddSystem(LcmPublisherSystem.Make(cfg.command_channel, lcmt_iiwa_command, lcm,
@@ -124,17 +122,16 @@ def add_lcm_controller(builder: DiagramBuilder, config: SimConfig, *, library: S
     command_pub.set_name("controller_command_publisher")
 
     builder.Connect(status_sub.get_output_port(), status.get_input_port())
-    builder.Connect(status.GetOutputPort("position_measured"), state.get_input_port(0))
-    builder.Connect(status.GetOutputPort("velocity_estimated"), state.get_input_port(1))
-    builder.Connect(status.GetOutputPort("position_measured"), guard.GetInputPort("position_measured"))
+    for port in ("position_measured", "velocity_estimated"):
+        builder.Connect(status.GetOutputPort(port), guard.GetInputPort(port))
     builder.Connect(status.GetOutputPort("time_measured"), guard.GetInputPort("status_time"))
     builder.Connect(wrist_sub.get_output_port(), receiver.GetInputPort("lcmt_drake_signal"))
     ctrl.connect_wrist(builder, receiver.GetOutputPort("human_wrist"))
-    ctrl.connect_measured_state(builder, state.get_output_port())
+    ctrl.connect_measured_state(builder, guard.GetOutputPort("measured_state"))
     builder.Connect(ctrl.desired_state, guard.GetInputPort("desired_state"))
     builder.Connect(guard.GetOutputPort("position"), sender.GetInputPort("position"))
     builder.Connect(sender.get_output_port(), command_pub.get_input_port())
-    return LcmControllerHandles(ctrl, guard, status_sub, status, state, wrist_sub, receiver, sender, command_pub, lcm,
+    return LcmControllerHandles(ctrl, guard, status_sub, status, wrist_sub, receiver, sender, command_pub, lcm,
                                 ((cfg.status_channel, "lcmt_iiwa_status"), (cfg.wrist_channel, "lcmt_drake_signal")))
 
 

@@ -196,13 +196,18 @@ class IiwaCommandGuard(LeafSystem):
         input_ports:
         - desired_state
         - position_measured
+        - velocity_estimated
         - status_time
         output_ports:
         - position
+        - measured_state
         - guard_status
 
-    ``position_measured`` (n,) and ``status_time`` (1,) are the
-    ``IiwaStatusReceiver``'s outputs of the newest ``lcmt_iiwa_status``.
+    ``position_measured`` (n,), ``velocity_estimated`` (n,) and ``status_time`` (1,)
+    are the ``IiwaStatusReceiver``'s outputs of the newest ``lcmt_iiwa_status``;
+    ``measured_state`` passes them on as [q; v] (2n,) for the controller, and
+    evaluating it before a status has been received is an error (the receiver would
+    give zeros, and a hold pose latched from them would send the robot to zero).
     ``position`` (n,) is the command, updated every ``limits.period`` by
     :func:`guard_step` from ``desired_state`` ([q; v], only q is used) and latched
     from the measured position at initialization; ``guard_status`` is the
@@ -226,12 +231,16 @@ class IiwaCommandGuard(LeafSystem):
         n = self._n = limits.n
         self._desired = self.DeclareVectorInputPort("desired_state", 2 * n)
         self._measured = self.DeclareVectorInputPort("position_measured", n)
+        self._velocity = self.DeclareVectorInputPort("velocity_estimated", n)
         self._time = self.DeclareVectorInputPort("status_time", 1)
         self._state = self.DeclareDiscreteState(GuardState().to_vector(n))
         self.DeclareInitializationDiscreteUpdateEvent(self._initialize)
         self.DeclarePeriodicDiscreteUpdateEvent(limits.period, 0.0, self._update)
         deps = {self.discrete_state_ticket(self._state)}
         self.DeclareVectorOutputPort("position", n, self._calc_position, prerequisites_of_calc=deps)
+        self.DeclareVectorOutputPort("measured_state", 2 * n, self._calc_measured_state,
+                                     prerequisites_of_calc={self._measured.ticket(), self._velocity.ticket(),
+                                                            self._time.ticket()})
         self.DeclareAbstractOutputPort("guard_status", lambda: AbstractValue.Make(GuardState()),
                                        self._calc_status, prerequisites_of_calc=deps)
 
@@ -265,6 +274,13 @@ class IiwaCommandGuard(LeafSystem):
         if x[self._n + 5] < 0.5:
             raise RuntimeError(f"IiwaCommandGuard: no command yet (no lcmt_iiwa_status on '{self._channel}')")
         output.SetFromVector(x[:self._n])
+
+    def _calc_measured_state(self, context: Context, output: BasicVector) -> None:
+        q = np.asarray(self._measured.Eval(context))
+        if not status_received(q, float(self._time.Eval(context)[0])):
+            raise RuntimeError(f"IiwaCommandGuard: no lcmt_iiwa_status received on '{self._channel}' (the measured "
+                               f"state would be zeros); deliver a status before the controller initializes")
+        output.SetFromVector(np.concatenate([q, self._velocity.Eval(context)]))
 
     def _calc_status(self, context: Context, output: AbstractValue) -> None:
         output.set_value(self.guard_state(context))

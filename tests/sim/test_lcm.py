@@ -163,7 +163,6 @@ def test_the_two_halves_meet_only_on_the_bus(subject):
                                                 meshcat=make_meshcat())
     controller_names = {s.get_name() for s in (
         parts.controller.guard, parts.controller.status_subscriber, parts.controller.status_receiver,
-        parts.controller.measured_state,
         parts.controller.wrist_subscriber, parts.controller.wrist_receiver, parts.controller.command_sender,
         parts.controller.command_publisher, *parts.controller.controller.trial_systems)}
     crossing = []

@@ -83,15 +83,19 @@ def test_the_guard_system_refuses_to_start_without_a_status():
     guard = IiwaCommandGuard(LIMITS)
     context = guard.CreateDefaultContext()
     guard.GetInputPort("desired_state").FixValue(context, np.concatenate([HOME_Q, np.zeros(7)]))
-    guard.GetInputPort("position_measured").FixValue(context, np.zeros(7))
+    guard.GetInputPort("position_measured").FixValue(context, np.zeros(7))  # the default message, decoded
+    guard.GetInputPort("velocity_estimated").FixValue(context, np.zeros(7))
     guard.GetInputPort("status_time").FixValue(context, [0.0])
     simulator = Simulator(guard, context)
     with pytest.raises(RuntimeError, match="no lcmt_iiwa_status"):
         simulator.Initialize()
+    with pytest.raises(RuntimeError, match="would be zeros"):
+        guard.GetOutputPort("measured_state").Eval(context)
     guard.GetInputPort("position_measured").FixValue(context, HOME_Q)
     guard.GetInputPort("status_time").FixValue(context, [3.0])
     simulator.Initialize()
     np.testing.assert_allclose(guard.GetOutputPort("position").Eval(context), HOME_Q)
+    np.testing.assert_allclose(guard.GetOutputPort("measured_state").Eval(context)[:7], HOME_Q)
     simulator.AdvanceTo(0.2)  # the status time never changes: stale after 0.1 s
     status = guard.GetOutputPort("guard_status").Eval(context)
     assert status.holding and status.stale_events == 1
