@@ -26,8 +26,9 @@ from drake_skills.sim.models import HOME_Q, IIWA7_JOINT_LIMITS, IIWA7_VELOCITY_L
 from drake_skills.systems.wrist_source import WristTrial
 
 TAUGHT = ("tomato", "standup", "bowl", "dressing")
-#: A skill, an untaught task (unknown), another skill: held-out demonstrations (index 4).
-TRIALS = (("tomato", 4), ("board", 4), ("standup", 4))
+#: A skill and an untaught task (unknown): held-out demonstrations (index 4). make demo's 20 trials are
+#: compared by hand (README, "On a real robot"): a test runs a few.
+TRIALS = (("tomato", 4), ("board", 4))
 HANDOVER_TOLERANCE_CM = 0.5
 
 
@@ -89,7 +90,7 @@ def test_over_memq_the_controller_decides_as_the_direct_diagram_and_hands_over_w
     commands = _commands(sim.parts.lcm)
     results = _run(sim, subject)
     assert [r.component for r in results] == [r.component for r in direct]
-    assert [r.component >= 0 for r in direct] == [True, False, True]  # skill, unknown, skill
+    assert [r.component >= 0 for r in direct] == [True, False]  # skill, unknown
     for lcm_result, direct_result in zip(results, direct):
         assert lcm_result.correct and direct_result.correct
         if direct_result.component >= 0:
@@ -214,3 +215,19 @@ def test_the_controller_refuses_to_start_on_a_silent_bus(subject):
     runner = ControllerRunner(diagram, handles, config, realtime_rate=0.0)
     with pytest.raises(TimeoutError, match="'IIWA_STATUS' \\(lcmt_iiwa_status\\), 'DRAKE_SKILLS_WRIST'"):
         runner.start()
+
+
+def test_the_lcm_settings_are_read_from_the_config_and_validated(tmp_path):
+    from drake_skills.sim.config import load_config
+
+    path = tmp_path / "sim.yaml"
+    path.write_text("lcm:\n  latency: 0.02\n  wrist_channel: TRACKER\n")
+    lcm = load_config(path).lcm
+    assert (lcm.latency, lcm.wrist_channel, lcm.status_channel, lcm.url) == (0.02, "TRACKER", "IIWA_STATUS", "memq://")
+    assert lcm.impaired
+    path.write_text("lcm:\n  wrist_drop: 1.5\n")
+    with pytest.raises(ValueError, match="sim.yaml.*wrist_drop"):
+        load_config(path)
+    path.write_text("lcm:\n  command_channel: IIWA_STATUS\n")
+    with pytest.raises(ValueError, match="distinct"):
+        load_config(path)
