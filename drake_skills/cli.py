@@ -22,6 +22,7 @@ COMMAND_MODULES = [
     "evaluate",
     "tune",
     "bench",
+    "control",
 ]
 
 

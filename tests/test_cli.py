@@ -11,7 +11,7 @@ from drake_skills.data.demos import load_demo, save_npz
 from drake_skills.scenario.salad import TASKS
 
 
-COMMANDS = ["demo", "learn", "recognize", "generate", "plot-demos", "eval", "bench", "tune"]
+COMMANDS = ["demo", "learn", "recognize", "generate", "plot-demos", "eval", "bench", "tune", "control"]
 
 
 def test_parser_has_the_design_commands():
