@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -82,6 +83,38 @@ class Demonstration:
     @property
     def dim_robot(self) -> int:
         return 0 if self.robot is None else int(self.robot.shape[1])
+
+    def save(self, path: str | Path) -> Path:
+        """Write the demonstration to ``path``, as ``.npz`` or ``.csv`` by its suffix.
+
+        npz: arrays ``t`` (T,), ``human`` (T, D_h), ``robot`` (T, D_r) if any, and the
+        labels as 0-d strings; CSV: header ``t,hx,hy,hz,q1,...,q7[,task,subject]``
+        (``h1..hD`` for more than 3 human columns), 17 significant digits, so both
+        read back exactly (:meth:`load`; the layouts are in
+        :mod:`drake_skills.data.demos`). The write is atomic.
+
+        Returns
+        -------
+        Path
+            The written file.
+        """
+        from drake_skills.data.demos import save_csv, save_npz
+
+        path = Path(path)
+        suffix = path.suffix.lower()
+        if suffix == ".npz":
+            return save_npz(self, path)
+        if suffix == ".csv":
+            return save_csv(self, path)
+        raise ValueError(f"demo '{path}': cannot save as {path.suffix or 'a file without suffix'}; "
+                         f"use .npz or .csv")
+
+    @classmethod
+    def load(cls, path: str | Path) -> "Demonstration":
+        """Read a demonstration file written by :meth:`save` (or by hand in the same layout)."""
+        from drake_skills.data.demos import load_demo
+
+        return load_demo(path)
 
     def __repr__(self) -> str:
         r = "None" if self.robot is None else f"{self.robot.shape}"
