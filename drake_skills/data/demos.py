@@ -34,7 +34,7 @@ import numpy as np
 
 from drake_skills._checks import as_finite_array
 from drake_skills._io import atomic_write
-from drake_skills.data.demonstration import Demonstration
+from drake_skills.data.demonstration import Demonstration, human_columns as _human_columns, save_csv, save_npz
 from drake_skills.data.workspace import Workspace
 
 log = logging.getLogger(__name__)
@@ -42,6 +42,9 @@ log = logging.getLogger(__name__)
 #: Suffixes of demonstration files.
 DEMO_SUFFIXES = (".npz", ".csv")
 _HUMAN_XYZ = ("hx", "hy", "hz")
+__all__ = ["DEMO_SUFFIXES", "DirScan", "check_layout", "columns_of", "is_calibration_file", "load_calibration",
+           "load_csv", "load_demo", "load_dir", "load_npz", "load_workspace", "save_calibration", "save_csv",
+           "save_npz", "scan_dir"]
 
 
 def _read_npz(path: Path, where: str) -> dict[str, np.ndarray]:
@@ -64,26 +67,6 @@ def _read_npz(path: Path, where: str) -> dict[str, np.ndarray]:
 
 
 # --------------------------------------------------------------------------- npz
-def save_npz(demo: Demonstration, path: str | Path) -> Path:
-    """Write ``demo`` to ``path`` (.npz, uncompressed, no pickled objects).
-
-    Returns
-    -------
-    Path
-        The written file.
-    """
-    path = Path(path)
-    arrays = {"t": demo.t, "human": demo.human}
-    if demo.robot is not None:
-        arrays["robot"] = demo.robot
-    for label in ("task", "subject"):
-        value = getattr(demo, label)
-        if value is not None:
-            arrays[label] = np.array(value, dtype=str)
-    atomic_write(path, lambda f: np.savez(f, **arrays))
-    return path
-
-
 def _numeric(a: np.ndarray, key: str, where: str) -> np.ndarray:
     if a.dtype.kind not in "fiu":
         raise ValueError(f"{where}: '{key}' has dtype {a.dtype}, expected numbers")
@@ -121,31 +104,6 @@ def load_npz(path: str | Path) -> Demonstration:
 
 
 # --------------------------------------------------------------------------- csv
-def _human_columns(d: int) -> list[str]:
-    return list(_HUMAN_XYZ[:d]) if d <= 3 else [f"h{i + 1}" for i in range(d)]
-
-
-def save_csv(demo: Demonstration, path: str | Path) -> Path:
-    """Write ``demo`` as CSV with header ``t,hx,hy,hz,q1,...,q7[,task,subject]``.
-
-    Numbers are written with 17 significant digits (exact float64 round trip).
-    """
-    path = Path(path)
-    header = ["t"] + _human_columns(demo.dim_human) + [f"q{i + 1}" for i in range(demo.dim_robot)]
-    labels = [k for k in ("task", "subject") if getattr(demo, k) is not None]
-    header += labels
-    cols = [demo.t[:, None], demo.human] + ([demo.robot] if demo.robot is not None else [])
-    data = np.concatenate(cols, axis=1)
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(header)
-    extra = [getattr(demo, k) for k in labels]
-    for row in data:
-        w.writerow([repr(float(x)) for x in row] + extra)
-    atomic_write(path, lambda f: f.write(buf.getvalue().encode()))
-    return path
-
-
 def load_csv(path: str | Path) -> Demonstration:
     """Read a demonstration written by :func:`save_csv` (or by hand, same header).
 
@@ -293,7 +251,7 @@ def _same_demo(a: Demonstration, b: Demonstration) -> str | None:
     for name in ("t", "human", "robot"):
         x, y = getattr(a, name), getattr(b, name)
         if (x is None) != (y is None):
-            return f"only one has a robot trajectory"
+            return "only one has a robot trajectory"
         if x is not None and (x.shape != y.shape or not np.allclose(x, y, rtol=1e-9, atol=1e-12)):
             return f"'{name}' differs (shapes {x.shape} and {y.shape})"
     for label in ("task", "subject"):

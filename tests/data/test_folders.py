@@ -27,7 +27,7 @@ def test_demonstration_save_writes_the_format_of_the_suffix_and_loads_back_exact
     assert path == tmp_path / f"d{suffix}"
     if suffix == ".csv":
         assert path.read_text().startswith("t,hx,hy,hz,q1,")
-    back = Demonstration.load(path)
+    back = load_demo(path)
     np.testing.assert_array_equal(back.t, demo.t)
     np.testing.assert_array_equal(back.human, demo.human)
     np.testing.assert_array_equal(back.robot, demo.robot)
