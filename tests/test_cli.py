@@ -297,13 +297,16 @@ def test_bench_prints_tables_that_fit_100_columns():
             {"suite": "library", "name": "batch EM refit vs partial_fit, N=1000", "value": 669.1, "unit": "x",
              "goal": ">= 100x at N=1000", "notes": "EM 627.0 ms (K=5, full cov, 150-D) vs partial_fit 0.940 ms"},
             {"suite": "sim", "name": "full diagram, meshcat recording + HTML export", "value": 3.21,
-             "unit": "sim s / wall s", "goal": ">= 3x real time", "notes": "10 trials, 31.4 s simulated in 9.8 s"}]
+             "unit": "sim s / wall s", "goal": ">= 3x real time", "notes": "10 trials, 31.4 s simulated in 9.8 s"},
+            {"suite": "sim", "name": "full diagram, meshcat recording at 32 frames per second + HTML export",
+             "value": 2.95, "unit": "sim s / wall s", "goal": ">= 3x real time on two cores shared with others"}]
     text = format_tables(rows)
     assert max(len(line) for line in text.splitlines()) <= 100
+    assert "    goal: >= 3x real time on two cores" in text  # a column that does not fit goes under its row
     for r in rows:  # every cell is still there
         flat = " ".join(text.split())
         assert all(" ".join(str(v).split()) in flat for k, v in r.items() if k not in ("suite", "notes"))
-        assert str(r["notes"]).split()[0] in flat
+        assert str(r.get("notes", "")).split()[:1] == [] or str(r["notes"]).split()[0] in flat
 
 
 def test_bench_runs_a_suite_and_prints_within_100_columns(tmp_path, capsys):
@@ -455,3 +458,20 @@ def test_the_readme_worked_example_runs_as_written(tmp_path, monkeypatch, capsys
     right = sum(line.split()[1] == line.split()[3] for line in lines)
     wrong = sum(line.split()[2] == "skill" and line.split()[1] != line.split()[3] for line in lines)
     assert right >= 5 and wrong <= 1, lines  # today 6 of 9 right, 0 wrong (taught in file order)
+
+
+def test_generate_rewrites_its_own_files_so_a_smaller_run_leaves_nothing_of_a_larger_one(tmp_path):
+    out = tmp_path / "salad"
+    assert main(["generate", "salad", "--subjects", "2", "--demos", "2", "--tasks", "bowl", "--csv",
+                 "--out", str(out)]) == 0
+    (out / "notes.txt").write_text("mine")
+    assert main(["generate", "salad", "--subjects", "1", "--demos", "1", "--tasks", "bowl", "--out", str(out)]) == 0
+    files = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
+    assert files == ["README.txt", "manifest.json", "notes.txt", "subject1/bowl_00.npz", "subject1/calibration.npz"]
+
+
+def test_plot_demos_counts_each_demonstration_once(dataset, tmp_path, capsys):
+    capsys.readouterr()
+    assert main(["plot-demos", str(dataset / "all"), "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert f"({4 * len(TASKS)} demonstrations of subject1)" in out and (tmp_path / "demos.png").is_file()
