@@ -475,3 +475,20 @@ def test_plot_demos_counts_each_demonstration_once(dataset, tmp_path, capsys):
     assert main(["plot-demos", str(dataset / "all"), "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert f"({4 * len(TASKS)} demonstrations of subject1)" in out and (tmp_path / "demos.png").is_file()
+
+
+def test_recognize_a_fraction_observes_the_shortest_prefix_that_covers_it(dataset, learned, tmp_path):
+    from drake_skills.commands.recognize import _prefix
+    from drake_skills.data.demos import load_workspace
+
+    lib = SkillLibrary.load(learned / "library.npz")
+    ws = load_workspace(dataset / "held" / "calibration.npz")
+    human = load_demo(dataset / "held" / "board_03.npz").human
+    total = lib.path_length(human, workspace=ws)
+    cut = _prefix(lib, human, 0.6, ws)
+    assert lib.path_length(cut, workspace=ws) >= 0.6 * total > lib.path_length(cut[:-1], workspace=ws)
+    assert main(["recognize", str(learned / "library.npz"), str(dataset / "held" / "board_03.npz"),
+                 "--fraction", "0.6", "--out", str(tmp_path)]) == 0
+    rec = json.loads((tmp_path / "recognition.json").read_text())
+    assert rec["fraction"] == 0.6 and rec["files"][0]["decision"] in ("skill", "undecided", "unknown")
+    assert main(["recognize", str(learned / "library.npz"), str(dataset / "held"), "--fraction", "0"]) == 1
