@@ -27,6 +27,7 @@ COMMAND_MODULES = [
     "generate",
     "plot_demos",
     "evaluate",
+    "tune",
     "bench",
 ]
 

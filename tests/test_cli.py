@@ -14,9 +14,9 @@ from drake_skills.data.demonstration import Demonstration
 from drake_skills.data.demos import load_demo, save_csv, save_npz
 from drake_skills.scenario.salad import TASKS
 
-from shared_data import BUETEPAGE_HR, require
+from shared_data import require
 
-COMMANDS = ["demo", "learn", "recognize", "import", "generate", "plot-demos", "eval", "bench"]
+COMMANDS = ["demo", "learn", "recognize", "import", "generate", "plot-demos", "eval", "bench", "tune"]
 
 
 def _subparsers(parser):
@@ -80,7 +80,7 @@ def test_version_is_printed_anywhere(argv, capsys):
 
 
 #: The commands in which something is random (the presentation order, the simulated data, the trials).
-SEEDED = {"learn", "generate", "demo", "eval letters", "eval salad", "eval sensitivity"}
+SEEDED = {"learn", "generate", "demo", "tune", "eval letters", "eval salad", "eval sensitivity", "eval interaction"}
 
 
 def test_seed_is_offered_only_where_something_is_random():
@@ -318,7 +318,7 @@ def test_bench_runs_a_suite_and_prints_within_100_columns(tmp_path, capsys):
 
 
 LIBRARY_COMMANDS = [["demo"], ["learn", "DIR"], ["bench"], ["eval", "letters"], ["eval", "salad"],
-                    ["eval", "sensitivity"]]
+                    ["eval", "sensitivity"], ["eval", "interaction"], ["tune", "DIR"]]
 
 
 @pytest.mark.parametrize("command", LIBRARY_COMMANDS, ids=lambda c: " ".join(c[:2]))
@@ -409,7 +409,8 @@ def test_import_interactions_errors_name_the_file(tmp_path, capsys):
     assert "odd.npz" in err and "missing" in err and "offsets" in err, err
     src = _interaction_file(tmp_path / "hr.npz", np.random.default_rng(0))
     assert main(["import", "interactions", str(src), "--columns", "6:12", "--out", str(tmp_path / "o")]) == 1
-    assert "6:12" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "hr.npz" in err and "[9, 10, 11] out of range" in err, err
 
 
 def test_three_commands_take_an_interaction_file_to_a_table_of_recognized_test_interactions(tmp_path, capsys):
@@ -435,7 +436,7 @@ def _readme_blocks():
 
 def test_the_readme_worked_example_runs_as_written(tmp_path, monkeypatch, capsys):
     """The README's commands and Python snippet, run as a newcomer would (data path from ../shared/data)."""
-    data = require(BUETEPAGE_HR)
+    data = require("buetepage_hr.npz")
     commands, python = _readme_blocks()
     assert len(commands) == 3 and all(c[0] == "drake-skills" for c in commands)
     assert len([line for line in python.strip().splitlines() if line.strip()]) < 10  # under ten lines of Python

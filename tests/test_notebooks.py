@@ -18,7 +18,7 @@ from jupyter_client.manager import KernelManager
 from nbclient import NotebookClient
 from nbformat.v4 import new_code_cell
 
-from shared_data import BUETEPAGE_HR, require
+from shared_data import require
 
 NOTEBOOKS = Path(__file__).resolve().parents[1] / "notebooks"
 KERNEL = "drake_skills_test_python"
@@ -102,7 +102,7 @@ def test_drake_diagram_notebook_runs_a_trial_and_writes_the_recording(tmp_path, 
 
 def test_own_data_notebook_goes_from_the_interaction_file_to_a_table_of_recognized_test_interactions(tmp_path,
                                                                                                     kernel_dirs):
-    data = require(BUETEPAGE_HR)
+    data = require("buetepage_hr.npz")
     s = run_notebook("04_own_data.ipynb", f"DATA = {str(data)!r}\nN_TRAIN_PER_TASK = 5", tmp_path, kernel_dirs)
     assert s["train"] == 20 and s["test"] == 9
     assert s["files"] == ["hand_shake_00.npz", "hand_shake_01.npz", "hand_wave_00.npz", "hand_wave_01.npz",

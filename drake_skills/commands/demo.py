@@ -34,10 +34,18 @@ def register(sub) -> None:
 
 def _row(r) -> str:
     flange = "" if not math.isfinite(r.flange_error_cm) else f"{r.flange_error_cm:.1f}"
-    rms = "" if not math.isfinite(r.tracking_rms_rad) else f"{r.tracking_rms_rad:.4f}"
+    frac = "" if not math.isfinite(r.decision_fraction) else f"{100 * r.decision_fraction:.0f}%"
+    lead = "" if not math.isfinite(r.lead_s) else f"{r.lead_s:+.1f}"
     what = r.decision + (f" ({r.recognized_task})" if r.recognized_task else "") + (" -> taught" if r.taught else "")
-    return (f"{r.trial + 1:5d}  {r.task:9s}  {what:30s}  {'yes' if r.correct else 'NO':7s}  {flange:>9s}  "
-            f"{rms:>9s}")
+    if r.revisions:
+        what += f", revised {r.revisions}x"
+    return (f"{r.trial:5d}  {r.task:9s}  {what:34s}  {r.outcome:6s}  {frac:>6s}  {lead:>6s}  {flange:>9s}")
+
+
+def _result(d: dict):
+    from drake_skills.sim.demo import TrialResult
+
+    return TrialResult(**d)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -45,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
     from drake_skills.sim.config import load_config
     from drake_skills.sim.demo import run_collaboration
     from drake_skills.sim.diagram import make_meshcat
+    from drake_skills.commands.demo_plots import legend_html, plot_trial
 
     cfg = load_config(args.config)
     overrides = {"seed": args.seed, "subject": args.subject}
@@ -61,14 +70,28 @@ def run(args: argparse.Namespace) -> int:
     print(f"subject {cfg.subject}: {len(data.demos)} demonstrations generated in {t_gen:.1f} s; "
           f"{cfg.trials} trials against an empty library")
     meshcat = make_meshcat()
-    print(f"{'trial':>5s}  {'task':9s}  {'decision':30s}  {'correct':7s}  {'flange cm':>9s}  {'rms rad':>9s}")
-    summary, library = run_collaboration(cfg, data.demos, workspace, meshcat=meshcat,
-                                         on_trial=lambda r: print(_row(r), flush=True))
+    print(f"{'trial':>5s}  {'task':9s}  {'decision':34s}  {'result':6s}  {'commit':>6s}  {'lead s':>6s}  "
+          f"{'flange cm':>9s}")
+    plots = args.out / "trials"
+    plots.mkdir(exist_ok=True)
+    for old in plots.glob("trial_*.png"):
+        old.unlink()
+
+    def on_trial(result, outcome):
+        print(_row(result), flush=True)
+        plot_trial(result, outcome, plots / f"trial_{result.trial:02d}.png")
+
+    summary, library = run_collaboration(cfg, data.demos, workspace, meshcat=meshcat, on_trial=on_trial)
     summary.wall_seconds = time.perf_counter() - t0
     acc = summary.accuracy_after_teaching
-    print(f"accuracy after teaching: {'n/a' if not math.isfinite(acc) else f'{100 * acc:.0f}%'} "
-          f"({summary.known_trials} trials of taught tasks); unknown -> taught: {summary.unknown}; "
-          f"wrong skill executed: {summary.wrong}; components: {summary.components}")
+    print(f"{summary.trials} trials: right {summary.right}, WRONG skill executed {summary.wrong}, asked "
+          f"{summary.asked} (unknown {summary.unknown}, undecided at rest {summary.undecided_at_rest}); "
+          f"components: {summary.components}")
+    print(f"taught tasks: {'n/a' if not math.isfinite(acc) else f'{100 * acc:.0f}%'} right of "
+          f"{summary.known_trials} trials; wrong commits revised in time: {summary.wrong_commits - summary.wrong}")
+    if math.isfinite(summary.mean_decision_fraction):
+        print(f"the robot committed at {100 * summary.mean_decision_fraction:.0f}% of the person's path on average, "
+              f"{summary.mean_lead_s:+.2f} s before the person stopped")
     print(f"flange error at handover (right skill): mean {summary.mean_flange_error_cm:.1f} cm, "
           f"max {summary.max_flange_error_cm:.1f} cm; joint tracking RMS {summary.mean_tracking_rms_rad:.4f} rad; "
           f"joint limits {'held' if summary.within_limits else 'VIOLATED'}")
@@ -85,6 +108,9 @@ def run(args: argparse.Namespace) -> int:
             print("stopped")
         return 0
     html = args.out / "demo.html"
-    html.write_text(meshcat.StaticHtml())
+    page = meshcat.StaticHtml()
+    legend = legend_html([_result(r) for r in summary.results])
+    page = page.replace("</body>", legend + "</body>", 1) if "</body>" in page else page + legend
+    html.write_text(page)
     print(f"wrote {args.out / 'summary.json'}, {args.out / 'library.npz'}, {html}")
     return 0

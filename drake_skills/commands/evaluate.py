@@ -1,4 +1,4 @@
-"""``drake-skills eval letters|salad``: the paper's experiments (Sec. 4), written as tables and plots."""
+"""``drake-skills eval letters|salad|sensitivity|interaction``: the experiments, written as tables and plots."""
 from __future__ import annotations
 
 import argparse
@@ -47,6 +47,49 @@ def register(sub) -> None:
     common(q, "sensitivity", 100)
     q.add_argument("--splits", type=int, default=None, help="salad train/test splits per subject (default 10)")
     q.set_defaults(func=run_sensitivity)
+
+    from drake_skills.data.interaction import SHARED_ENV, shared_data_path
+
+    q = esub.add_parser("interaction", help="real human-robot interactions (buetepage_hr.npz): recognition, "
+                                            "components, robot response and anticipation on the source's split",
+                        description="Learn the training interactions of --data in random orders with the library "
+                                    "settings (default LibraryConfig(); workspace = the bounding box of the "
+                                    "training wrists) and report, on the source's test split: recognition "
+                                    "(correct / wrong / undecided / unknown), components found, the robot "
+                                    "response error of predict_robot beside a task-mean baseline, and "
+                                    "recognition of path prefixes with the phase estimated (anticipation).")
+    add_common(q, "eval/interaction")
+    q.add_argument("--data", type=Path, default=shared_data_path("buetepage_hr.npz"),
+                   help=f"interactions file (default: ../shared/data/buetepage_hr.npz beside the repository, "
+                        f"or under ${SHARED_ENV}/data)")
+    q.add_argument("--columns", choices=("hand", "arm"), default="hand",
+                   help="human columns: the hand/wrist (6:9, default) or the whole arm (shoulder, elbow, hand: 0:9)")
+    q.add_argument("--orders", type=int, default=20, help="random orders of the training interactions (default 20)")
+    q.add_argument("--rate", type=float, default=100.0,
+                   help="sampling rate of the file in Hz (not stated by the source; default 100)")
+    q.add_argument("--quick", action="store_true", help="reduced run: 2 orders, fractions 0.1, 0.5, 1.0")
+    q.add_argument("--workers", type=int, default=available_workers(),
+                   help="processes for the orders (default: available cores); results do not depend on it")
+    q.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_config(q)
+    q.set_defaults(func=run_interaction)
+
+
+def run_interaction(args: argparse.Namespace) -> int:
+    from drake_skills.evaluation.common import use_agg
+    from drake_skills.evaluation.interaction import InteractionSettings, evaluate_interaction
+
+    use_agg()
+    t0 = time.time()
+    if not Path(args.data).is_file():
+        raise FileNotFoundError(f"interactions file '{args.data}' does not exist (give --data PATH)")
+    kw = dict(data=str(args.data), columns=args.columns, orders=args.orders, rate_hz=args.rate, seed=args.seed,
+              library=_library(args))
+    if args.quick:
+        kw.update(orders=2, fractions=(0.1, 0.5, 1.0))
+    rep = evaluate_interaction(InteractionSettings(**kw), workers=args.workers, progress=not args.no_progress)
+    rep.summary["command"] = " ".join(["drake-skills", "eval", "interaction"] + sys.argv[3:])
+    return _finish(rep, args.out, t0)
 
 
 def _finish(rep, out: Path, t0: float) -> int:

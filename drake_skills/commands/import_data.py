@@ -10,7 +10,6 @@ import argparse
 import json
 from pathlib import Path
 
-import numpy as np
 
 from drake_skills.commands import add_out
 
@@ -36,66 +35,39 @@ def register(sub) -> None:
                     "and `drake-skills recognize out/learn/library.npz OUT/test`.")
     q.add_argument("data", type=Path, metavar="NPZ", help="the data set file, e.g. ../shared/data/buetepage_hr.npz")
     q.add_argument("--columns", default="6:9", metavar="START:STOP",
-                   help="columns of the human array to use (default 6:9, the hand of buetepage_hr)")
+                   help="columns of the human array to use (default 6:9, the hand of buetepage_hr), or a name: "
+                        "hand, arm, elbow, shoulder")
     q.add_argument("--rate", type=float, default=RATE_HZ, help=f"sampling rate in Hz (default {RATE_HZ:g})")
     q.add_argument("--csv", action="store_true", help="write CSV files instead of npz")
     add_out(q, "import", "the demonstration files")
     q.set_defaults(func=run_interactions)
 
 
-def _columns(text: str) -> slice:
+def _columns(text: str):
+    """``START:STOP`` as column indices, or a column name of :data:`drake_skills.data.interaction.COLUMNS`."""
+    from drake_skills.data.interaction import COLUMNS
+
+    if text in COLUMNS:
+        return text
     try:
         start, stop = (int(x) for x in text.split(":"))
     except ValueError:
-        raise ValueError(f"--columns must be START:STOP (e.g. 6:9), got {text!r}") from None
+        raise ValueError(f"--columns must be START:STOP (e.g. 6:9) or one of {sorted(COLUMNS)}, got {text!r}") \
+            from None
     if not 0 <= start < stop:
         raise ValueError(f"--columns {text}: need 0 <= START < STOP")
-    return slice(start, stop)
+    return list(range(start, stop))  # explicit indices: the loader checks each against the file (a slice clips)
 
 
-def _read_interactions(path: Path, columns: slice, rate: float):
-    """``[(Demonstration, split)]`` from the arrays of the file (see the data set's README).
+def _interactions(path: Path, columns, rate: float):
+    """``[(Demonstration, split)]`` read by :func:`drake_skills.data.interaction.load_interactions`."""
+    from drake_skills.data.interaction import load_interactions
 
-    Used until ``drake_skills.data.interaction.load_interactions`` is there; then that
-    loader reads the file and this command only writes it out.
-    """
-    from drake_skills.data.demonstration import Demonstration
-    from drake_skills.data.demos import _read_npz
-
-    where = f"data set '{path}'"
-    if not path.is_file():
-        raise FileNotFoundError(f"{where}: no such file")
-    z = _read_npz(path, where)
-    missing = [k for k in ("human", "robot", "offsets", "task", "split") if k not in z]
-    if missing:
-        raise ValueError(f"{where}: missing array(s) {missing}; has {sorted(z)}")
-    human, robot, off = z["human"], z["robot"], z["offsets"]
-    n = len(off) - 1
-    if human.ndim != 2 or columns.stop > human.shape[1]:
-        raise ValueError(f"{where}: human has shape {human.shape}; columns {columns.start}:{columns.stop} do not fit")
-    if len(z["task"]) != n or len(z["split"]) != n or off[0] != 0 or off[-1] != len(human) or len(robot) != len(human):
-        raise ValueError(f"{where}: offsets, task, split, human and robot do not agree in length")
-    out = []
-    for i in range(n):
-        rows = slice(int(off[i]), int(off[i + 1]))
-        T = rows.stop - rows.start
-        d = Demonstration(t=np.arange(T) / rate, human=human[rows, columns], robot=robot[rows],
-                          task=str(z["task"][i]), name=f"{where}, interaction {i}")
-        out.append((d, str(z["split"][i])))
-    return out
-
-
-def _interactions(path: Path, columns: slice, rate: float):
-    """``[(Demonstration, split)]``: through the data layer's loader when there is one."""
-    try:
-        from drake_skills.data.interaction import load_interactions
-    except ImportError:
-        return _read_interactions(path, columns, rate)
-    got = load_interactions(path, columns=columns)
-    demos, splits = got if isinstance(got, tuple) else (got, None)
-    if splits is None:
-        splits = ["test" if "test" in (d.name or "") else "train" for d in demos]
-    return list(zip(demos, splits))
+    demos = load_interactions(path, columns=columns, rate_hz=rate)
+    if all(s is None for s in demos.split):
+        raise ValueError(f"data set '{path}' has no 'split' array: the workspace is the bounding box of the "
+                         f"training split, so the file must say which interactions are for training")
+    return list(zip(demos, demos.split))
 
 
 def _remove_previous(out: Path) -> None:

@@ -93,6 +93,11 @@ class Components:
     #: (K, 2) their supports (0 for an empty one)
     sub_support: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
+    @property
+    def path_lengths(self) -> np.ndarray:
+        """(K,) mean path lengths of the components' demonstrations."""
+        return np.array([c.cluster.path_length for c in self.items], float)
+
     @classmethod
     def of(cls, items: Sequence[ComponentModel], n_human: int) -> "Components":
         work = _Work(cls((), np.zeros((0, n_human)), np.zeros(0), np.zeros(0, dtype=np.int64),
@@ -164,16 +169,17 @@ class _Work:
 
 @dataclass(frozen=True)
 class Metric:
-    """The gating metric: ``Sigma`` (h, h), the inverse of its Cholesky factor and its log-determinant."""
+    """The gating metric: ``Sigma`` (h, h), its Cholesky factor and that factor's inverse, its log-determinant."""
 
     cov: np.ndarray
     inv_chol: np.ndarray
     logdet: float
+    chol: np.ndarray
 
     @classmethod
     def of(cls, cov: np.ndarray) -> "Metric":
         L = np.linalg.cholesky(cov)
-        return cls(cov, np.linalg.inv(L), float(2.0 * np.sum(np.log(np.diag(L)))))
+        return cls(cov, np.linalg.inv(L), float(2.0 * np.sum(np.log(np.diag(L)))), L)
 
     def whiten(self, x: np.ndarray) -> np.ndarray:
         """``L^{-1} x`` for rows of ``x`` (n, h) or one (h,)."""
@@ -249,7 +255,7 @@ def _new_component(cid: int, created: int, w, duration: float, path_length: floa
 
 
 def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: float, path_length: float, *,
-            n_human: int, config, rule: NoveltyRule, next_id: int, demo_index: int) -> Step:
+            n_human: int, config, rule: NoveltyRule, next_id: int, demo_index: int, fit_residual: float = 0.0) -> Step:
     """Algorithm 1 for one demonstration with stacked weights ``w`` (d,) = ``[w_h; w_r]``.
 
     Parameters
@@ -271,10 +277,12 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
         Id of a component created now.
     demo_index : int
         Index of the demonstration in the stream; ages are counted from it.
+    fit_residual : float
+        Mean squared residual of the demonstration's human path around its basis fit.
     """
     h = n_human
     work = _Work(comps, h)
-    scale = scale.count(w)
+    scale = scale.count(w, fit_residual)
     created, updated, merged, split, deleted = [], [], [], [], []
     history: list[dict] = []
     resp: dict = {}

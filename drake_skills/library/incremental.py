@@ -63,12 +63,13 @@ from drake_skills.library.algorithm import (ComponentModel, Components, fold_in,
                                             responsibilities)
 from drake_skills.library.config import NOVELTY_TESTS, LibraryConfig, WorkspaceBounds
 from drake_skills.library.novelty import novelty_rule
-from drake_skills.library.scale import Cluster, SharedScale, shared_covariance
+from drake_skills.library.prefix import score_at_phase, score_prefix
+from drake_skills.library.scale import Cluster, SharedScale, observation_noise, shared_covariance
 from drake_skills.library.state import ComponentState, LibraryState
 from drake_skills.library.views import (Component, DataWarning, Recognition, UnitsWarning, UnknownSkillError,
                                         Update, WorkspaceWarning)
 from drake_skills.promp.basis import ridge_weights, trajectory_covariance
-from drake_skills.promp.interaction import InteractionProMP, condition_on_observations, prefix_statistics
+from drake_skills.promp.interaction import InteractionProMP, condition_on_observations
 from drake_skills.promp.preprocessing import arc_length, resample_by_arc_length, resample_in_time
 
 __all__ = ["Component", "ComponentState", "DataWarning", "LibraryConfig", "LibraryState", "NOVELTY_TESTS",
@@ -76,9 +77,6 @@ __all__ = ["Component", "ComponentState", "DataWarning", "LibraryConfig", "Libra
            "WorkspaceBounds", "WorkspaceWarning"]
 
 log = logging.getLogger(__name__)
-
-#: Relative phase grid around the path-length estimate searched by prefix recognition.
-PHASE_GRID = (0.8, 0.9, 1.0, 1.1, 1.25)
 
 #: The extent of a motion (its largest per-axis range after Eq. 14) as fractions of the
 #: normalized workspace scale (10 without a workspace, as the settings assume): a whole
@@ -272,7 +270,7 @@ class SkillLibrary:
         return InteractionProMP.from_moments(
             np.array(c.mean), self._expert_cov(c), self.dim_human_, self.dim_robot_,
             basis_human=cfg.basis_human, basis_robot=cfg.basis_robot, ridge=cfg.ridge,
-            observation_noise=cfg.observation_noise)
+            observation_noise=self._noise())
 
     def _check_fitted(self):
         if self.dim_human_ is None:
@@ -470,10 +468,14 @@ class SkillLibrary:
         self._guard(y, workspace, False, whole=True, query=False, where=where)
         n = self._n_seen
         h = demo.dim_human * self.config.n_basis_human
+        cfg = self.config
+        y_h = self.human_samples(demo.human, workspace=workspace, where=where)
+        fit = cfg.basis_human.phi_uniform(y_h.shape[0]) @ w[:h].reshape(demo.dim_human, -1).T
+        fit_residual = float(np.mean((y_h - fit) ** 2))
         comps = self._components if self._scale is not None else Components.of([], h)
         scale = self._scale if self._scale is not None else SharedScale.empty(w.shape[0])
         step = fold_in(comps, scale, w, demo.duration, path, n_human=h, config=self.config, rule=self._rule,
-                       next_id=self._next_id, demo_index=n)
+                       next_id=self._next_id, demo_index=n, fit_residual=fit_residual)
         # commit: nothing above touched self
         self._components, self._scale = step.components, step.scale
         self._history.extend(step.history)
@@ -501,7 +503,7 @@ class SkillLibrary:
             the motion's weights against each component (as learning does), less
             compares the observed samples with each component's prefix of that length.
             If omitted, the fraction is estimated per component: its path length
-            against the component's mean path length, refined over :data:`PHASE_GRID`
+            against the component's mean path length, refined over a grid of phases (:mod:`~drake_skills.library.prefix`)
             by the likelihood of the samples (``Recognition.phases``).
         workspace : Workspace, optional
         normalized : bool
@@ -573,23 +575,14 @@ class SkillLibrary:
         h = self.n_human
         if not len(comps):
             return self._empty_recognition(h)
-        metric = gating_metric(self._scale, h, cfg)
+        metric = self._metric()
         if observed_fraction == 1:
             w_h = ridge_weights(y, cfg.basis_human, cfg.ridge)
             logp, d2 = gating_scores(w_h, comps, metric)
             return self._decide(logp, d2, h, np.ones(len(comps)))
-        Phi_o = cfg.basis_human.phi(np.linspace(0.0, observed_fraction, y.shape[0]))
-        logp, d2, dof = self._prefix_scores(y, [Phi_o] * len(comps), metric)
+        logp, d2, dof = score_at_phase(y, observed_fraction, comps.means_h, 1.0 + 1.0 / comps.support, metric.chol,
+                                       cfg.basis_human, self._noise(), self._prefix_cache(metric))
         return self._decide(logp, d2, dof, np.full(len(comps), observed_fraction))
-
-    def _prefix_scores(self, y, Phis, metric):
-        comps = self._components
-        K = len(comps)
-        logp, d2, dof = np.empty(K), np.empty(K), np.empty(K)
-        for i, (c, Phi_o) in enumerate(zip(comps.items, Phis)):
-            S = metric.cov * (1.0 + 1.0 / c.support)
-            logp[i], d2[i], dof[i] = prefix_statistics(comps.means_h[i], S, Phi_o, y, self.config.observation_noise)
-        return logp, d2, dof
 
     def _recognize_prefix(self, y, length: float) -> Recognition:
         """Recognition with the phase estimated per component (see :meth:`recognize`)."""
@@ -598,24 +591,13 @@ class SkillLibrary:
         h = self.n_human
         if not len(comps):
             return self._empty_recognition(h)
-        metric = gating_metric(self._scale, h, cfg)
-        lengths = np.array([max(c.cluster.path_length, 1e-12) for c in comps.items])
-        guess = length / lengths
+        metric = self._metric()
+        guess = length / np.maximum(comps.path_lengths, 1e-12)
         m = max(2, int(round(cfg.n_samples * min(1.0, float(np.median(np.minimum(guess, 1.0)))))))
         ys = _resample_path(y, m, cfg.resample_tolerance)
-        best = None
-        for factor in PHASE_GRID:
-            f = np.clip(guess * factor, 1.0 / cfg.n_samples, 1.0)
-            Phis = [cfg.basis_human.phi(np.linspace(0.0, fk, m)) for fk in f]
-            lp, dd, df = self._prefix_scores(ys, Phis, metric)
-            if best is None:
-                best = [lp, dd, df, f]
-            else:
-                better = lp > best[0]
-                for arr, new in zip(best, (lp, dd, df, f)):
-                    arr[better] = new[better]
-        logp, d2, dof, phases = best
-        return self._decide(logp, d2, dof, phases)
+        sc = score_prefix(ys, guess, comps.means_h, 1.0 + 1.0 / comps.support, metric.chol, cfg.basis_human,
+                          self._noise(), self._prefix_cache(metric))
+        return self._decide(sc.log_likelihoods, sc.mahalanobis_sq, sc.dof, sc.phases)
 
     def predict_robot(self, human, observed_fraction: float | None = None, *, workspace: Workspace | None = None,
                       component: int | None = None, n_steps: int | None = None, normalized: bool = False):
@@ -673,28 +655,53 @@ class SkillLibrary:
         Phi_o = cfg.basis_human.phi(np.linspace(0.0, f, y.shape[0]))
         h, n = self.n_human, n_steps or cfg.n_samples
         # Eq. (13), keeping only the robot block of the posterior
-        mean_w, cov_w = condition_on_observations(c.mean, self._expert_cov(c), Phi_o, y, cfg.observation_noise,
+        mean_w, cov_w = condition_on_observations(c.mean, self._expert_cov(c), Phi_o, y, self._noise(),
                                                   start=h)
         mean_r = cfg.basis_robot.phi_uniform(n) @ mean_w.reshape(self.dim_robot_, -1).T
         cov_r = trajectory_covariance(cov_w, cfg.basis_robot, self.dim_robot_, n_steps=n)
         return mean_r, cov_r
 
+    def observation_noise(self) -> float:
+        """The variance of an observed human sample prefix recognition and conditioning use (normalized units^2).
+
+        ``config.observation_noise`` or, if larger, the mean residual of the demonstrations'
+        paths around their basis fits (:func:`~drake_skills.library.scale.observation_noise`).
+        """
+        self._check_fitted()
+        return self._noise()
+
+    def _noise(self) -> float:
+        return observation_noise(self._scale, self.config.observation_noise)
+
+    def _prefix_cache(self, metric) -> dict:
+        """Eigendecompositions of prefix recognition for the current scale (emptied when the library learns)."""
+        if getattr(self, "_prefix", (None,))[0] is not self._scale:
+            self._prefix = (self._scale, {})
+        return self._prefix[1]
+
+    def _metric(self):
+        """The gating metric of the current scale (cached until the library learns)."""
+        if getattr(self, "_metric_cache", (None,))[0] is not self._scale:
+            self._metric_cache = (self._scale, gating_metric(self._scale, self.n_human, self.config))
+        return self._metric_cache[1]
+
+    def estimate_phase(self, human, component: int, *, workspace: Workspace | None = None,
+                       normalized: bool = False) -> float:
+        """How much of component ``component``'s motion ``human`` covers (0-1), as :meth:`recognize` estimates it."""
+        self._check_fitted()
+        y, length = self._normalized(human, workspace, normalized)
+        return self._phase_of(y, length, self._model(component))
+
     def _phase_of(self, y, length: float, c: ComponentModel) -> float:
-        """The phase of one component that explains the normalized path ``y`` best (over :data:`PHASE_GRID`)."""
+        """The phase of one component that explains the normalized path ``y`` best (see :mod:`.prefix`)."""
         cfg = self.config
-        metric = gating_metric(self._scale, self.n_human, cfg)
+        metric = self._metric()
         guess = length / max(c.cluster.path_length, 1e-12)
-        best = (-np.inf, 1.0)
-        i = self._components.ids.index(c.id)
-        for factor in PHASE_GRID:
-            f = float(np.clip(guess * factor, 1.0 / cfg.n_samples, 1.0))
-            m = max(2, int(round(cfg.n_samples * f)))
-            ys = _resample_path(y, m, cfg.resample_tolerance)
-            lp, _, _ = prefix_statistics(self._components.means_h[i], metric.cov * (1.0 + 1.0 / c.support),
-                                         cfg.basis_human.phi(np.linspace(0.0, f, m)), ys, cfg.observation_noise)
-            if lp > best[0]:
-                best = (lp, f)
-        return best[1]
+        m = max(2, int(round(cfg.n_samples * min(1.0, guess))))
+        ys = _resample_path(y, m, cfg.resample_tolerance)
+        sc = score_prefix(ys, np.array([guess]), c.mean[None, :self.n_human], np.array([1.0 + 1.0 / c.support]),
+                          metric.chol, cfg.basis_human, self._noise(), self._prefix_cache(metric))
+        return float(sc.phases[0])
 
     # ---------------------------------------------------------------- storage
     def save(self, path) -> Path:

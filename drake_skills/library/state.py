@@ -129,7 +129,7 @@ class LibraryState:
                 raise ValueError(f"shared scale has shapes {np.shape(sc.total_mean)}, {np.shape(sc.pooled)}; "
                                  f"the dimensions say {d} weights")
             if not all(np.isfinite(a).all() for a in (sc.total_mean, sc.total_m2, sc.pooled)) \
-                    or not np.isfinite(sc.dof) or sc.n < 0:
+                    or not np.isfinite(sc.dof) or sc.n < 0 or not (np.isfinite(sc.fit_m2) and sc.fit_m2 >= 0):
                 raise ValueError("shared scale has NaN or inf entries or a negative count")
             if (sc.total_m2 < -1e-9 * (1 + np.abs(sc.total_m2).max())).any() or sc.dof < -1e-9:
                 raise ValueError("shared scale has negative variances or degrees of freedom")

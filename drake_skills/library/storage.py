@@ -82,7 +82,7 @@ def save_state(state: LibraryState, path) -> Path:
         "n_seen": state.n_seen,
         "history": list(state.history),
         "trained_with_workspace": state.trained_with_workspace,
-        "scale": {"n": int(sc.n), "dof": float(sc.dof)},
+        "scale": {"n": int(sc.n), "dof": float(sc.dof), "fit_m2": float(sc.fit_m2)},
         "components": [dict(id=c.id, age=c.age, **_cluster_meta(c.cluster),
                             subclusters=[None if s is None else _cluster_meta(s) for s in c.subclusters])
                        for c in comps],
@@ -282,7 +282,7 @@ def load_state(path) -> LibraryState:
             comps.append(ComponentState(_int(cm["id"], f"component {i} id"), _int(cm["age"], f"component {i} age"),
                                         cluster, tuple(subs)))
         scale = SharedScale(_int(scale_meta["n"], "scale n"), a["total_mean"], a["total_m2"], a["pooled"],
-                            float(scale_meta["dof"]))
+                            float(scale_meta["dof"]), float(scale_meta.get("fit_m2", 0.0)))
     except (KeyError, TypeError, ValueError) as exc:
         raise ValueError(f"{where}: component metadata is bad ({type(exc).__name__}: {exc})") from None
     if not np.allclose(scale.pooled, scale.pooled.T, rtol=1e-9, atol=1e-12):

@@ -47,10 +47,10 @@ class MeshcatConfig:
     frames_per_second: float = 32.0
     # radius of the sphere drawn at the person's wrist (m)
     wrist_radius: float = 0.035
-    # camera position, metres (world): behind and left of the seated person
-    camera_position: list[float] = field(default_factory=lambda: [-1.9, -1.7, 1.9])
-    # point the camera looks at, metres (world): above the table centre
-    camera_target: list[float] = field(default_factory=lambda: [0.0, 0.1, 0.9])
+    # camera position, metres (world): behind and right of the seated person, framing the table
+    camera_position: list[float] = field(default_factory=lambda: [-1.45, -1.05, 1.55])
+    # point the camera looks at, metres (world): above the table, between the person and the robot
+    camera_target: list[float] = field(default_factory=lambda: [-0.2, 0.15, 0.9])
 
 
 @dataclass

@@ -38,8 +38,8 @@ from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
 from drake_skills.library.incremental import SkillLibrary
 from drake_skills.data.workspace import Workspace
 from drake_skills.sim.config import SimConfig
-from drake_skills.sim.models import (FLANGE_FRAME, HOME_Q, IIWA7_JOINT_LIMITS, add_salad_scene, load_scene_config,
-                                     make_iiwa7_plant)
+from drake_skills.sim.models import (FLANGE_FRAME, HOME_Q, IIWA7_JOINT_LIMITS, IIWA7_VELOCITY_LIMITS, add_salad_scene,
+                                     load_scene_config, make_iiwa7_plant)
 from drake_skills.sim.wrist_marker import WristMarker
 from drake_skills.systems.conditioner import InteractionProMPConditioner
 from drake_skills.systems.gating import SkillGating
@@ -141,7 +141,7 @@ def build_diagram(config: SimConfig, *, library: SkillLibrary, workspace: Worksp
     normalizer = builder.AddSystem(WorkspaceNormalizer(workspace, subtract_start=library.config.subtract_start))
     gating = builder.AddSystem(SkillGating(library, config.decision, dim=workspace.dim))
     conditioner = builder.AddSystem(InteractionProMPConditioner(library, n_steps=config.n_steps))
-    source = builder.AddSystem(JointTrajectorySource(lower, upper, HOME_Q))
+    source = builder.AddSystem(JointTrajectorySource(lower, upper, HOME_Q, IIWA7_VELOCITY_LIMITS))
     monitor = builder.AddSystem(TrialMonitor(settle_time=config.settle_time,
                                              unknown_hold_time=config.unknown_hold_time))
     for system, name in ((wrist, "human_wrist_source"), (normalizer, "workspace_normalizer"), (gating, "skill_gating"),

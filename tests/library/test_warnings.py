@@ -9,7 +9,7 @@ import pytest
 from drake_skills import Demonstration, SkillLibrary, Workspace
 from drake_skills.library.incremental import UNITS_RANGE, DataWarning, UnitsWarning, WorkspaceWarning
 
-from shared_data import BUETEPAGE_HR, require
+from shared_data import require
 from synthetic import synthetic_demo
 
 
@@ -151,7 +151,7 @@ def test_the_library_file_remembers_whether_it_was_trained_with_a_workspace(tmp_
 
 def test_real_interactions_with_the_training_workspace_do_not_warn():
     """buetepage_hr, hand columns, workspace = bounding box of the training wrists: no false alarm."""
-    z = np.load(require(BUETEPAGE_HR), allow_pickle=False)
+    z = np.load(require("buetepage_hr.npz"), allow_pickle=False)
     off = z["offsets"]
     demos = [Demonstration(t=np.arange(off[i + 1] - off[i]) / 100.0, human=z["human"][off[i]:off[i + 1], 6:9],
                            robot=z["robot"][off[i]:off[i + 1]]) for i in range(len(off) - 1)]
