@@ -29,9 +29,9 @@ from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
-from scipy.special import logsumexp
 
 from drake_skills.library.novelty import NoveltyRule
+from drake_skills.promp.gaussian import logsumexp
 from drake_skills.library.scale import Cluster, SharedScale, gating_covariance
 
 _LOG_2PI = np.log(2.0 * np.pi)

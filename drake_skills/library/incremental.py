@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import logging
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
@@ -70,7 +71,7 @@ from drake_skills.library.views import (Component, DataWarning, Recognition, Uni
                                         Update, WorkspaceWarning)
 from drake_skills.promp.basis import ridge_weights, trajectory_covariance
 from drake_skills.promp.interaction import InteractionProMP, condition_on_observations
-from drake_skills.promp.preprocessing import arc_length, resample_by_arc_length, resample_in_time
+from drake_skills.promp.preprocessing import arc_length, resample_in_time
 
 __all__ = ["Component", "ComponentState", "DataWarning", "LibraryConfig", "LibraryState", "NOVELTY_TESTS",
            "Recognition", "SkillLibrary", "UNITS_RANGE", "UnitsWarning", "UnknownSkillError", "Update",
@@ -239,9 +240,20 @@ class SkillLibrary:
         return self._shared_cov()[:h, :h]
 
     def _expert_cov(self, c: ComponentModel) -> np.ndarray:
-        k = self.config.expert_prior
-        C = (k * self._shared_cov() + c.cluster.scatter) / (k + c.support - 1.0)
-        return 0.5 * (C + C.T)
+        """``(kappa Sigma + S_k) / (kappa + s_k - 1)``, kept until the library learns (a d x d product each)."""
+        if getattr(self, "_expert_cache", (None,))[0] is not self._scale:
+            self._expert_cache = (self._scale, {})
+        cache = self._expert_cache[1]
+        key = id(c.cluster)
+        if key not in cache or cache[key][0] is not c.cluster:
+            k = self.config.expert_prior
+            C = (k * self._shared_cov() + c.cluster.scatter) / (k + c.support - 1.0)
+            C = 0.5 * (C + C.T)
+            C.setflags(write=False)
+            if len(cache) >= 64:  # a few d x d matrices, not one per component of a large library
+                cache.pop(next(iter(cache)))
+            cache[key] = (c.cluster, C)
+        return cache[key][1]
 
     def as_mixture(self, part: str = "gating"):
         """The library as a Gaussian mixture ``(weights (K,), means (K, d), covs (K, d, d))``.
@@ -280,15 +292,8 @@ class SkillLibrary:
         return f"SkillLibrary(n_components={self.n_components}, n_seen={self.n_seen})"
 
     # --------------------------------------------------------- preprocessing
-    def _normalized(self, human, workspace=None, normalized: bool = False, where: str | None = None):
-        """Eq. (14): the motion in normalized units relative to its start, and its path length.
-
-        Returns
-        -------
-        y : array, shape (T, D_h)
-        length : float
-            Arc length of ``y`` counting only moves beyond ``resample_tolerance``.
-        """
+    def _normalized(self, human, workspace=None, normalized: bool = False, where: str | None = None) -> "_Path":
+        """Eq. (14): the motion in normalized units relative to its start, with its path (see :class:`_Path`)."""
         cfg = self.config
         human = as_finite_array(human, "human", ndim=2, min_rows=2, where=where)
         if self.dim_human_ is not None and human.shape[1] != self.dim_human_:
@@ -307,15 +312,15 @@ class SkillLibrary:
                 human = ws.normalize(human, subtract_start=cfg.subtract_start)
             elif cfg.subtract_start:
                 human = human - human[0]
-        length = float(arc_length(human, cfg.resample_tolerance)[1][-1])
-        if not length > 0:
+        vertices, s = arc_length(human, cfg.resample_tolerance)
+        if not s[-1] > 0:
             raise ValueError(f"{where + ': ' if where else ''}human trajectory does not move: its path length is 0")
-        return human, length
+        return _Path(human, vertices, s)
 
     def path_length(self, human, *, workspace: Workspace | None = None, normalized: bool = False,
                     where: str | None = None) -> float:
         """Length of the human path in normalized units (the measure of a prefix's phase)."""
-        return self._normalized(human, workspace, normalized, where)[1]
+        return self._normalized(human, workspace, normalized, where).length
 
     # ----------------------------------------------------------- data guards
     def _warn_once(self, kind: str, category: type[DataWarning], message: str, stacklevel: int) -> None:
@@ -388,9 +393,8 @@ class SkillLibrary:
         f = float(observed_fraction)
         if not 0 < f <= 1:
             raise ValueError(f"observed_fraction must be in (0, 1], got {observed_fraction!r}")
-        y, _ = self._normalized(human, workspace, normalized, where)
         n = cfg.n_samples if f == 1 else max(2, int(round(f * cfg.n_samples)))
-        return resample_by_arc_length(y, n, cfg.resample_tolerance)
+        return self._normalized(human, workspace, normalized, where).resample(n)
 
     def encode(self, demo: Demonstration, workspace: Workspace | None = None) -> np.ndarray:
         """The stacked weights of a demonstration in the library's weight space (Eqs. 3-4, 14).
@@ -464,8 +468,9 @@ class SkillLibrary:
         if not np.isfinite(w).all():
             raise ValueError("demonstration gives non-finite weights")
         where = f"demo {demo.name!r}" if demo.name else "demonstration"
-        y, path = self._normalized(demo.human, workspace, False, where)
-        self._guard(y, workspace, False, whole=True, query=False, where=where)
+        normalized_path = self._normalized(demo.human, workspace, False, where)
+        self._guard(normalized_path.y, workspace, False, whole=True, query=False, where=where)
+        path = normalized_path.length
         n = self._n_seen
         h = demo.dim_human * self.config.n_basis_human
         cfg = self.config
@@ -515,9 +520,9 @@ class SkillLibrary:
                                    normalized=normalized)
             self._guard(y, workspace, normalized, whole=float(observed_fraction) == 1, query=True, where=None)
             return self._recognize_fixed(y, float(observed_fraction))
-        y, length = self._normalized(human, workspace, normalized)
-        self._guard(y, workspace, normalized, whole=False, query=True, where=None)
-        return self._recognize_prefix(y, length)
+        path = self._normalized(human, workspace, normalized)
+        self._guard(path.y, workspace, normalized, whole=False, query=True, where=None)
+        return self._recognize_prefix(path)
 
     def _empty_recognition(self, dof) -> Recognition:
         z = np.zeros(0)
@@ -558,15 +563,23 @@ class SkillLibrary:
         if not others.size:
             return out
         block = slice(h, None) if self.has_robot else slice(0, h)
-        S = self._shared_cov()[block, block] * (1.0 + 1.0 / comps.support[best])
-        Linv = np.linalg.inv(np.linalg.cholesky(S))
+        Linv = self._response_whitener()
         mb = comps.items[best].mean[block]
         diff = np.stack([comps.items[j].mean[block] - mb for j in others]) @ Linv.T
-        d2 = np.einsum("ij,ij->i", diff, diff)
-        dof = S.shape[0]
+        d2 = np.einsum("ij,ij->i", diff, diff) / (1.0 + 1.0 / comps.support[best])
+        dof = Linv.shape[0]
         from drake_skills.library.novelty import chi2_ppf
         out[others] = d2 <= chi2_ppf(self.config.novelty_quantile, dof)
         return out
+
+    def _response_whitener(self) -> np.ndarray:
+        """Inverse Cholesky factor of the shared covariance of the responses (robot weights; human for letters)."""
+        if getattr(self, "_response_cache", (None,))[0] is not self._scale:
+            h = self.n_human
+            block = slice(h, None) if self.has_robot else slice(0, h)
+            L = np.linalg.cholesky(self._shared_cov()[block, block])
+            self._response_cache = (self._scale, np.linalg.inv(L))
+        return self._response_cache[1]
 
     def _recognize_fixed(self, y, observed_fraction: float) -> Recognition:
         """Eq. (12) on preprocessed human samples ``y`` evenly spaced in phase over ``[0, observed_fraction]``."""
@@ -584,7 +597,7 @@ class SkillLibrary:
                                        cfg.basis_human, self._noise(), self._prefix_cache(metric))
         return self._decide(logp, d2, dof, np.full(len(comps), observed_fraction))
 
-    def _recognize_prefix(self, y, length: float) -> Recognition:
+    def _recognize_prefix(self, path: "_Path") -> Recognition:
         """Recognition with the phase estimated per component (see :meth:`recognize`)."""
         cfg = self.config
         comps = self._components
@@ -592,9 +605,8 @@ class SkillLibrary:
         if not len(comps):
             return self._empty_recognition(h)
         metric = self._metric()
-        guess = length / np.maximum(comps.path_lengths, 1e-12)
-        m = max(2, int(round(cfg.n_samples * min(1.0, float(np.median(np.minimum(guess, 1.0)))))))
-        ys = _resample_path(y, m, cfg.resample_tolerance)
+        guess = path.length / np.maximum(comps.path_lengths, 1e-12)
+        ys = path.resample(_prefix_samples(cfg.n_samples, float(np.median(np.minimum(guess, 1.0)))))
         sc = score_prefix(ys, guess, comps.means_h, 1.0 + 1.0 / comps.support, metric.chol, cfg.basis_human,
                           self._noise(), self._prefix_cache(metric))
         return self._decide(sc.log_likelihoods, sc.mahalanobis_sq, sc.dof, sc.phases)
@@ -631,17 +643,16 @@ class SkillLibrary:
             raise ValueError("this library was learned from human-only demonstrations: it has no robot part")
         cfg = self.config
         if observed_fraction is None:
-            y, length = self._normalized(human, workspace, normalized)
-            self._guard(y, workspace, normalized, whole=False, query=True, where=None)
+            path = self._normalized(human, workspace, normalized)
+            self._guard(path.y, workspace, normalized, whole=False, query=True, where=None)
             if component is None:
-                rec = self._recognize_prefix(y, length)
+                rec = self._recognize_prefix(path)
                 if rec.component is None:
                     raise UnknownSkillError(_unknown_message(rec))
                 component, f = rec.component, rec.phase
             else:
-                c = self._model(component)
-                f = self._phase_of(y, length, c)
-            y = _resample_path(y, max(2, int(round(cfg.n_samples * f))), cfg.resample_tolerance)
+                f = self._phase_of(path, self._model(component))
+            y = path.resample(max(2, int(round(cfg.n_samples * f))))
         else:
             f = float(observed_fraction)
             y = self.human_samples(human, workspace=workspace, observed_fraction=f, normalized=normalized)
@@ -689,16 +700,14 @@ class SkillLibrary:
                        normalized: bool = False) -> float:
         """How much of component ``component``'s motion ``human`` covers (0-1), as :meth:`recognize` estimates it."""
         self._check_fitted()
-        y, length = self._normalized(human, workspace, normalized)
-        return self._phase_of(y, length, self._model(component))
+        return self._phase_of(self._normalized(human, workspace, normalized), self._model(component))
 
-    def _phase_of(self, y, length: float, c: ComponentModel) -> float:
+    def _phase_of(self, path: "_Path", c: ComponentModel) -> float:
         """The phase of one component that explains the normalized path ``y`` best (see :mod:`.prefix`)."""
         cfg = self.config
         metric = self._metric()
-        guess = length / max(c.cluster.path_length, 1e-12)
-        m = max(2, int(round(cfg.n_samples * min(1.0, guess))))
-        ys = _resample_path(y, m, cfg.resample_tolerance)
+        guess = path.length / max(c.cluster.path_length, 1e-12)
+        ys = path.resample(_prefix_samples(cfg.n_samples, min(1.0, guess)))
         sc = score_prefix(ys, np.array([guess]), c.mean[None, :self.n_human], np.array([1.0 + 1.0 / c.support]),
                           metric.chol, cfg.basis_human, self._noise(), self._prefix_cache(metric))
         return float(sc.phases[0])
@@ -717,8 +726,32 @@ class SkillLibrary:
         return cls.from_state(storage.load_state(path))
 
 
-def _resample_path(y: np.ndarray, n: int, tolerance: float) -> np.ndarray:
-    return resample_by_arc_length(y, n, tolerance)
+def _prefix_samples(n_samples: int, fraction: float) -> int:
+    """Samples a prefix covering ``fraction`` of a path is resampled to: ``fraction n_samples``, rounded up to a
+    multiple of 5 (so that prefix recognition meets the same few sizes again and reuses their cached terms)."""
+    return int(min(n_samples, max(5, 5 * np.ceil(fraction * n_samples / 5.0))))
+
+
+@dataclass(frozen=True, eq=False)
+class _Path:
+    """A motion normalized (Eq. 14) with its path: the vertices counted as moves and their arc length.
+
+    Computed once per query, so that recognizing, estimating the phase and
+    resampling the same motion walk its samples once.
+    """
+
+    y: np.ndarray
+    vertices: np.ndarray
+    s: np.ndarray
+
+    @property
+    def length(self) -> float:
+        return float(self.s[-1])
+
+    def resample(self, n: int) -> np.ndarray:
+        """``n`` samples equally spaced along the path (:func:`~drake_skills.promp.preprocessing.resample_by_arc_length`)."""
+        grid = np.linspace(0.0, self.s[-1], int(n))
+        return np.stack([np.interp(grid, self.s, self.vertices[:, d]) for d in range(self.vertices.shape[1])], axis=1)
 
 
 def _unknown_message(rec: Recognition) -> str:

@@ -33,9 +33,9 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy.special import logsumexp
 
 from drake_skills.promp.basis import GaussianBasis
+from drake_skills.promp.gaussian import logsumexp
 
 _LOG_2PI = np.log(2.0 * np.pi)
 #: Phases tried: 1/20 ... 1 in steps of 1/20.
@@ -44,18 +44,19 @@ PHASE_GRID = tuple(np.round(np.arange(1, 21) / 20.0, 6))
 PHASE_BAND = 1.5
 
 
-@lru_cache(maxsize=512)
-def _basis_terms(basis: GaussianBasis, phases: tuple, m: int):
-    """For each phase f: Phi over ``m`` evenly spaced phases of ``[0, f]``, its Gram matrix and pseudo-inverse.
-
-    Returns arrays of shapes (J, m, N), (J, N, N), (J, N, N) (read-only, cached).
-    """
-    Phi = np.stack([basis.phi(np.linspace(0.0, f, m)) for f in phases])
-    PtP = np.einsum("jtn,jtk->jnk", Phi, Phi)
-    Pinv = np.stack([np.linalg.pinv(P, rcond=1e-10, hermitian=True) for P in PtP])
-    for a in (Phi, PtP, Pinv):
-        a.setflags(write=False)
+@lru_cache(maxsize=2048)
+def _basis_at(basis: GaussianBasis, f: float, m: int):
+    """Phi over ``m`` evenly spaced phases of ``[0, f]`` (m, N), its Gram matrix and pseudo-inverse (cached)."""
+    Phi = basis.phi(np.linspace(0.0, f, m))
+    PtP = Phi.T @ Phi
+    Pinv = np.linalg.pinv(PtP, rcond=1e-10, hermitian=True)
     return Phi, PtP, Pinv
+
+
+def _basis_terms(basis: GaussianBasis, phases: tuple, m: int):
+    """:func:`_basis_at` for each phase, stacked: arrays of shapes (J, m, N), (J, N, N), (J, N, N)."""
+    parts = [_basis_at(basis, f, m) for f in phases]
+    return tuple(np.stack([p[i] for p in parts]) for i in range(3))
 
 
 def _whitened_gram(PtP: np.ndarray, chol: np.ndarray, D: int):
@@ -107,13 +108,16 @@ def score_phases(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarray
     m, D = y.shape
     phases = tuple(float(f) for f in phases)
     Phi, PtP, Pinv = _basis_terms(basis, phases, int(m))
-    key = (phases, int(m))
-    if cache is not None and key in cache:
-        lam, Q = cache[key]
-    else:
+    if cache is None:
         lam, Q = _whitened_gram(PtP, chol, D)
-        if cache is not None:
-            cache[key] = (lam, Q)
+    else:  # one entry per (phase, m): the phase sets asked for vary, the phases themselves recur
+        missing = [j for j, f in enumerate(phases) if (f, int(m)) not in cache]
+        if missing:
+            lam_m, Q_m = _whitened_gram(PtP[missing], chol, D)
+            for i, j in enumerate(missing):
+                cache[(phases[j], int(m))] = (lam_m[i], Q_m[i])
+        lam = np.stack([cache[(f, int(m))][0] for f in phases])
+        Q = np.stack([cache[(f, int(m))][1] for f in phases])
     J, _, N = Phi.shape
     K = means_h.shape[0]
     Mt = means_h.reshape(K, D, N).transpose(0, 2, 1)       # (K, N, D)
