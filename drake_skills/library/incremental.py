@@ -35,10 +35,21 @@ Where it departs from the paper, and why (RESULTS.md has the measurements):
 * **Deletion** by age and support, with the age limit growing with the number of
   components (``delete_min_age K / 5``), so that a library of many skills, each
   shown rarely, does not delete them before their second demonstration.
+
+Two slips the library cannot undo later are warned about with :func:`warnings.warn`
+(a :class:`~drake_skills.library.views.DataWarning`, at most once per library object
+and kind; the library keeps working): a motion given without a workspace to a
+library trained with one (:class:`~drake_skills.library.views.WorkspaceWarning`:
+it is then compared in raw units and comes out "unknown"), and a motion far outside
+the normalized range the settings assume (:class:`~drake_skills.library.views.UnitsWarning`,
+see :data:`UNITS_RANGE`: metres or millimetres given without a workspace would
+otherwise merge or split silently). Whether the library was trained with a workspace
+is part of its state and of its file.
 """
 from __future__ import annotations
 
 import logging
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
@@ -56,15 +67,26 @@ from drake_skills.library.novelty import novelty_rule
 from drake_skills.library.prefix import score_at_phase, score_prefix
 from drake_skills.library.scale import Cluster, SharedScale, observation_noise, shared_covariance
 from drake_skills.library.state import ComponentState, LibraryState
-from drake_skills.library.views import Component, Recognition, UnknownSkillError, Update
+from drake_skills.library.views import (Component, DataWarning, Recognition, UnitsWarning, UnknownSkillError,
+                                        Update, WorkspaceWarning)
 from drake_skills.promp.basis import ridge_weights, trajectory_covariance
 from drake_skills.promp.interaction import InteractionProMP, condition_on_observations
 from drake_skills.promp.preprocessing import arc_length, resample_in_time
 
-__all__ = ["Component", "ComponentState", "LibraryConfig", "LibraryState", "NOVELTY_TESTS", "Recognition",
-           "SkillLibrary", "UnknownSkillError", "Update", "WorkspaceBounds"]
+__all__ = ["Component", "ComponentState", "DataWarning", "LibraryConfig", "LibraryState", "NOVELTY_TESTS",
+           "Recognition", "SkillLibrary", "UNITS_RANGE", "UnitsWarning", "UnknownSkillError", "Update",
+           "WorkspaceBounds", "WorkspaceWarning"]
 
 log = logging.getLogger(__name__)
+
+#: The extent of a motion (its largest per-axis range after Eq. 14) as fractions of the
+#: normalized workspace scale (10 without a workspace, as the settings assume): a whole
+#: motion spanning less than the first, or any motion spanning more than the second, is
+#: taken to be in other units (:class:`UnitsWarning`). Whole motions of our data sets
+#: span 0.14-1.0 of the scale normalized (LASA 1.4-5.3 units with the letters' bounding
+#: box, salad 2.0-7.0, buetepage_hr 4.7-9.9) and 0.03-0.06 given in metres without a
+#: workspace (0.28-0.63 m); in millimetres, 28-63.
+UNITS_RANGE = (0.1, 10.0)
 
 
 def _read_only(a: np.ndarray) -> np.ndarray:
@@ -105,6 +127,8 @@ class SkillLibrary:
         self._next_id = 0
         self._n_seen = 0
         self._shared = None  # cache: shared stacked covariance of the current scale
+        self._with_workspace: bool | None = False  # None: unknown (a file written before it was kept)
+        self._warned: set[str] = set()  # DataWarning kinds already issued by this object
         self.dim_human_: int | None = None
         self.dim_robot_: int | None = None
 
@@ -114,7 +138,7 @@ class SkillLibrary:
         comps = tuple(ComponentState(c.id, self._n_seen - c.created, c.cluster, c.subclusters)
                       for c in self._components.items)
         return LibraryState(self.config, self.dim_human_, self.dim_robot_, self._next_id, self._n_seen, comps,
-                            tuple(dict(e) for e in self._history), self._scale)
+                            tuple(dict(e) for e in self._history), self._scale, self._with_workspace)
 
     @classmethod
     def from_state(cls, state: LibraryState) -> "SkillLibrary":
@@ -124,6 +148,7 @@ class SkillLibrary:
         lib = cls(state.config)
         lib._history = [dict(e) for e in state.history]
         lib._next_id, lib._n_seen = int(state.next_id), int(state.n_seen)
+        lib._with_workspace = state.trained_with_workspace
         if state.dim_human is not None:
             lib.dim_human_, lib.dim_robot_ = int(state.dim_human), int(state.dim_robot)
             lib._scale = state.scale
@@ -170,6 +195,11 @@ class SkillLibrary:
     @property
     def has_robot(self) -> bool:
         return bool(self.dim_robot_)
+
+    @property
+    def trained_with_workspace(self) -> bool | None:
+        """Whether a demonstration was folded in with a workspace (None: not known, an older file)."""
+        return self._with_workspace
 
     def component(self, component_id: int) -> Component:
         """The component with this id (KeyError if there is none)."""
@@ -292,6 +322,48 @@ class SkillLibrary:
         """Length of the human path in normalized units (the measure of a prefix's phase)."""
         return self._normalized(human, workspace, normalized, where).length
 
+    # ----------------------------------------------------------- data guards
+    def _warn_once(self, kind: str, category: type[DataWarning], message: str, stacklevel: int) -> None:
+        if kind in self._warned:
+            return
+        self._warned.add(kind)
+        warnings.warn(message + " (warned once per library)", category, stacklevel=stacklevel + 1)
+
+    def _guard(self, y: np.ndarray, workspace, normalized: bool, *, whole: bool, query: bool,
+               where: str | None, stacklevel: int = 3) -> None:
+        """Warn about a missing workspace or data in other units (see :data:`UNITS_RANGE`).
+
+        ``y`` are the samples after Eq. (14), ``whole`` says they cover a whole motion
+        (a prefix may span little), ``query`` that they are asked about, not taught.
+        """
+        ws = workspace if workspace is not None else self.config.workspace
+        if ws is None and not normalized and self._with_workspace:
+            call = "recognize()/predict_robot()" if query else "partial_fit()"
+            self._warn_once("workspace", WorkspaceWarning,
+                            f"{where + ': ' if where else ''}{call} without a workspace on a library trained with "
+                            f"one: the motion is taken in raw units and will likely be 'unknown'; pass workspace= "
+                            f"(the subject's Workspace) or, for samples already in normalized units, normalized=True",
+                            stacklevel)
+            return  # the units test would only repeat it
+        scale = ws.scale if ws is not None else 10.0
+        extent = float(np.ptp(y, axis=0).max())
+        low, high = UNITS_RANGE[0] * scale, UNITS_RANGE[1] * scale
+        if (whole and extent < low) or extent > high:
+            side = "below" if extent < low else "above"
+            if ws is not None:
+                fix = "are the workspace and the data in the same units?"
+            elif normalized:
+                fix = "normalized=True expects samples in the library's normalized units (Eq. 14 applied)."
+            else:
+                fix = ("raw metres or millimetres? Pass the subject's workspace= (Workspace.from_calibration("
+                       "motions), or the bounding box of the training data: Workspace.from_calibration([d.human "
+                       "for d in demos])), or normalize the data to [0, %g] first." % scale)
+            what = where or ("the motion" if query else "the demonstration")
+            self._warn_once("units", UnitsWarning,
+                            f"{what} spans {extent:.3g} units, far {side} the normalized range [0, {scale:g}] the "
+                            f"library's settings assume (a whole motion spans {low:g} to {high:g} units in it): "
+                            f"{fix}", stacklevel)
+
     def human_samples(self, human, *, workspace: Workspace | None = None, observed_fraction: float = 1.0,
                       normalized: bool = False, where: str | None = None) -> np.ndarray:
         """The human motion as the library sees it: Eq. (14), then resampled by arc length.
@@ -396,7 +468,9 @@ class SkillLibrary:
         if not np.isfinite(w).all():
             raise ValueError("demonstration gives non-finite weights")
         where = f"demo {demo.name!r}" if demo.name else "demonstration"
-        path = self.path_length(demo.human, workspace=workspace, where=where)
+        normalized_path = self._normalized(demo.human, workspace, False, where)
+        self._guard(normalized_path.y, workspace, False, whole=True, query=False, where=where)
+        path = normalized_path.length
         n = self._n_seen
         h = demo.dim_human * self.config.n_basis_human
         cfg = self.config
@@ -412,6 +486,8 @@ class SkillLibrary:
         self._history.extend(step.history)
         self._next_id = step.next_id
         self._n_seen = n + 1
+        if workspace is not None or self.config.workspace is not None:
+            self._with_workspace = True
         if self.dim_human_ is None:
             self.dim_human_, self.dim_robot_ = demo.dim_human, demo.dim_robot
         return Update(n, step.recognized, step.created, step.updated, step.merged, step.deleted,
@@ -442,8 +518,11 @@ class SkillLibrary:
         if observed_fraction is not None:
             y = self.human_samples(human, workspace=workspace, observed_fraction=observed_fraction,
                                    normalized=normalized)
+            self._guard(y, workspace, normalized, whole=float(observed_fraction) == 1, query=True, where=None)
             return self._recognize_fixed(y, float(observed_fraction))
-        return self._recognize_prefix(self._normalized(human, workspace, normalized))
+        path = self._normalized(human, workspace, normalized)
+        self._guard(path.y, workspace, normalized, whole=False, query=True, where=None)
+        return self._recognize_prefix(path)
 
     def _empty_recognition(self, dof) -> Recognition:
         z = np.zeros(0)
@@ -565,6 +644,7 @@ class SkillLibrary:
         cfg = self.config
         if observed_fraction is None:
             path = self._normalized(human, workspace, normalized)
+            self._guard(path.y, workspace, normalized, whole=False, query=True, where=None)
             if component is None:
                 rec = self._recognize_prefix(path)
                 if rec.component is None:
@@ -576,6 +656,7 @@ class SkillLibrary:
         else:
             f = float(observed_fraction)
             y = self.human_samples(human, workspace=workspace, observed_fraction=f, normalized=normalized)
+            self._guard(y, workspace, normalized, whole=f == 1, query=True, where=None)
             if component is None:
                 rec = self._recognize_fixed(y, f)
                 if rec.component is None:

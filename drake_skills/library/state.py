@@ -89,6 +89,10 @@ class LibraryState:
         Creations, merges, splits and deletions, in order (JSON-ready dicts).
     scale : SharedScale or None
         The totals and the pooled within-skill scatter (None before the first demonstration).
+    trained_with_workspace : bool or None
+        Whether any demonstration was folded in with a workspace (Eq. 14 from raw
+        units), so that a query without one is probably a mistake; None when not known
+        (files written before the library kept it).
     """
 
     config: LibraryConfig
@@ -99,8 +103,11 @@ class LibraryState:
     components: tuple[ComponentState, ...] = ()
     history: tuple[dict, ...] = ()
     scale: SharedScale | None = None
+    trained_with_workspace: bool | None = None
 
     def __post_init__(self):
+        if self.trained_with_workspace is not None and not isinstance(self.trained_with_workspace, bool):
+            raise ValueError(f"trained_with_workspace must be True, False or None, got {self.trained_with_workspace!r}")
         if not isinstance(self.config, LibraryConfig):
             raise ValueError(f"config must be a LibraryConfig, got {type(self.config).__name__}")
         if (self.dim_human is None) != (self.dim_robot is None):

@@ -8,7 +8,8 @@ Layout (schema version 3):
 
 * ``metadata``: a 0-d unicode array holding JSON: ``{"format": "drake-skills
   library", "schema_version": 3, "config": {...}, "dim_human", "dim_robot",
-  "next_id", "n_seen", "history": [...], "scale": {"n", "dof"}, "components":
+  "next_id", "n_seen", "history": [...], "trained_with_workspace": true, false or
+  null (optional: files written before it are read as null, unknown), "scale": {"n", "dof"}, "components":
   [{"id", "age", "support", "duration", "path_length", "rank", "subclusters":
   [{"support", "duration", "path_length", "rank"}, null or {...}]}, ...]}``;
 * ``means`` (K, d); ``factors`` (d, R): the components' scatter factors side by side
@@ -80,6 +81,7 @@ def save_state(state: LibraryState, path) -> Path:
         "next_id": state.next_id,
         "n_seen": state.n_seen,
         "history": list(state.history),
+        "trained_with_workspace": state.trained_with_workspace,
         "scale": {"n": int(sc.n), "dof": float(sc.dof), "fit_m2": float(sc.fit_m2)},
         "components": [dict(id=c.id, age=c.age, **_cluster_meta(c.cluster),
                             subclusters=[None if s is None else _cluster_meta(s) for s in c.subclusters])
@@ -229,6 +231,9 @@ def load_state(path) -> LibraryState:
         history = tuple(meta["history"])
         if not all(isinstance(e, dict) for e in history):
             raise ValueError("history entries must be objects")
+        with_ws = meta.get("trained_with_workspace")  # optional key: schema 3 without it reads as unknown
+        if with_ws is not None and not isinstance(with_ws, bool):
+            raise ValueError(f"trained_with_workspace must be true, false or null, got {with_ws!r}")
     except (KeyError, TypeError, ValueError) as exc:
         raise ValueError(f"{where}: bad metadata ({type(exc).__name__}: {exc})") from None
     K = len(comps_meta)
@@ -236,7 +241,7 @@ def load_state(path) -> LibraryState:
         if K:
             raise ValueError(f"{where}: components but no dimensions")
         try:
-            return LibraryState(config, None, None, next_id, n_seen, (), history, None)
+            return LibraryState(config, None, None, next_id, n_seen, (), history, None, with_ws)
         except ValueError as exc:
             raise ValueError(f"{where}: {exc}") from None
     d = dims[0] * config.n_basis_human + dims[1] * config.n_basis_robot
@@ -283,7 +288,7 @@ def load_state(path) -> LibraryState:
     if not np.allclose(scale.pooled, scale.pooled.T, rtol=1e-9, atol=1e-12):
         raise ValueError(f"{where}: the pooled scatter is not symmetric")
     try:
-        return LibraryState(config, dims[0], dims[1], next_id, n_seen, tuple(comps), history, scale)
+        return LibraryState(config, dims[0], dims[1], next_id, n_seen, tuple(comps), history, scale, with_ws)
     except ValueError as exc:
         raise ValueError(f"{where}: {exc}") from None
 

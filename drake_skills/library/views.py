@@ -19,6 +19,23 @@ class UnknownSkillError(RuntimeError):
     """The observed motion matches no skill: the robot should ask for a demonstration."""
 
 
+class DataWarning(UserWarning):
+    """Human data that the library can use but that is probably not what the caller meant.
+
+    Issued with :func:`warnings.warn` (so it shows without any logging set up, points at
+    the caller's line and can be filtered or turned into an error), at most once per
+    library object and kind.
+    """
+
+
+class WorkspaceWarning(DataWarning):
+    """A motion given without a workspace to a library that was trained with one."""
+
+
+class UnitsWarning(DataWarning):
+    """A motion far outside the normalized range the library's settings assume (raw metres, millimetres)."""
+
+
 @dataclass(frozen=True, eq=False)
 class Component:
     """A read-only view of one skill: an Interaction ProMP with its bookkeeping.
