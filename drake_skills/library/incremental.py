@@ -48,10 +48,11 @@ from drake_skills._checks import as_finite_array
 from drake_skills.data.demonstration import Demonstration
 from drake_skills.data.workspace import Workspace
 from drake_skills.library import storage
-from drake_skills.library.algorithm import (ComponentModel, Components, fold_in, gating_metric, gating_scores,
-                                            responsibilities)
+from drake_skills.library.algorithm import (ComponentModel, Components, Metric, fold_in, gating_metric,
+                                            gating_scores, responsibilities)
 from drake_skills.library.config import NOVELTY_TESTS, LibraryConfig, WorkspaceBounds
-from drake_skills.library.novelty import novelty_rule
+from drake_skills.library.novelty import Chi2Rule, chi2_ppf, novelty_rule
+from drake_skills.library.prefix import PrefixPairs, prefix_candidates
 from drake_skills.library.scale import Cluster, SharedScale, shared_covariance
 from drake_skills.library.state import ComponentState, LibraryState
 from drake_skills.library.views import Component, Recognition, UnknownSkillError, Update
@@ -66,6 +67,9 @@ log = logging.getLogger(__name__)
 
 #: Relative phase grid around the path-length estimate searched by prefix recognition.
 PHASE_GRID = (0.8, 0.9, 1.0, 1.1, 1.25)
+#: Above this many components, prefix recognition scores only the components a cheap
+#: bound does not rule out (:func:`~drake_skills.library.prefix.prefix_candidates`).
+PRUNE_MIN_COMPONENTS = 32
 
 
 def _read_only(a: np.ndarray) -> np.ndarray:
@@ -106,6 +110,7 @@ class SkillLibrary:
         self._next_id = 0
         self._n_seen = 0
         self._shared = None  # cache: shared stacked covariance of the current scale
+        self._memo: dict = {}  # caches of one library version: name -> ((components, scale), value)
         self.dim_human_: int | None = None
         self.dim_robot_: int | None = None
 
@@ -178,10 +183,10 @@ class SkillLibrary:
         return self._view(c, float(self._components.support.sum()), self.n_human)
 
     def _model(self, component_id: int) -> ComponentModel:
-        for c in self._components.items:
-            if c.id == component_id:
-                return c
-        raise KeyError(f"no component with id {component_id}; ids are {list(self._components.ids)}")
+        try:
+            return self._components.items[self._components.index(component_id)]
+        except (KeyError, TypeError):
+            raise KeyError(f"no component with id {component_id}; ids are {list(self._components.ids)}") from None
 
     def shared_covariance(self, part: str = "gating") -> np.ndarray:
         """The learned within-skill covariance: of the gating weights (h, h) or the stacked weights (d, d).
@@ -214,6 +219,24 @@ class SkillLibrary:
         k = self.config.expert_prior
         C = (k * self._shared_cov() + c.cluster.scatter) / (k + c.support - 1.0)
         return 0.5 * (C + C.T)
+
+    def _cached(self, name: str, compute):
+        """``compute()`` once per version of the library (components and scale are immutable, so identity is version)."""
+        key = (self._components, self._scale)
+        hit = self._memo.get(name)
+        if hit is not None and hit[0][0] is key[0] and hit[0][1] is key[1]:
+            return hit[1]
+        value = compute()
+        self._memo[name] = (key, value)
+        return value
+
+    def _metric(self) -> Metric:
+        """The gating metric of the current scale."""
+        return self._cached("metric", lambda: gating_metric(self._scale, self.n_human, self.config))
+
+    def _whitened_means(self) -> np.ndarray:
+        """``L^{-1} mu_k`` of every component (K, h): a whole motion's distances are one product away."""
+        return self._cached("whitened", lambda: self._metric().whiten(self._components.means_h))
 
     def as_mixture(self, part: str = "gating"):
         """The library as a Gaussian mixture ``(weights (K,), means (K, d), covs (K, d, d))``.
@@ -444,9 +467,14 @@ class SkillLibrary:
         z = np.zeros(0)
         return Recognition(None, (), z, z, z, dof, "unknown", z, z)
 
-    def _decide(self, logp, d2, dof, phases) -> Recognition:
+    def _decide(self, logp, d2, dof, phases, scored: np.ndarray | None = None) -> Recognition:
+        """The answer from per-component statistics; ``scored``: the components scored (the others cannot fit)."""
         comps = self._components
-        fits = ~self._rule.novel(logp, d2, dof)
+        if scored is None:
+            fits = ~self._rule.novel(logp, d2, dof)
+        else:
+            fits = np.zeros(len(comps), bool)
+            fits[scored] = ~self._rule.novel(logp[scored], d2[scored], dof[scored])
         resp = responsibilities(logp, comps.support)
         post = responsibilities(logp, comps.support, fits)
         ids = comps.ids
@@ -479,14 +507,16 @@ class SkillLibrary:
         if not others.size:
             return out
         block = slice(h, None) if self.has_robot else slice(0, h)
-        S = self._shared_cov()[block, block] * (1.0 + 1.0 / comps.support[best])
-        Linv = np.linalg.inv(np.linalg.cholesky(S))
+        support = float(comps.support[best])
+        factors = self._cached("response_metric", dict)  # support -> L^{-1} of the response block
+        Linv = factors.get(support)
+        if Linv is None:
+            S = self._shared_cov()[block, block] * (1.0 + 1.0 / support)
+            Linv = factors[support] = np.linalg.inv(np.linalg.cholesky(S))
         mb = comps.items[best].mean[block]
         diff = np.stack([comps.items[j].mean[block] - mb for j in others]) @ Linv.T
         d2 = np.einsum("ij,ij->i", diff, diff)
-        dof = S.shape[0]
-        from drake_skills.library.novelty import chi2_ppf
-        out[others] = d2 <= chi2_ppf(self.config.novelty_quantile, dof)
+        out[others] = d2 <= chi2_ppf(self.config.novelty_quantile, Linv.shape[0])
         return out
 
     def _recognize_fixed(self, y, observed_fraction: float) -> Recognition:
@@ -496,23 +526,47 @@ class SkillLibrary:
         h = self.n_human
         if not len(comps):
             return self._empty_recognition(h)
-        metric = gating_metric(self._scale, h, cfg)
+        metric = self._metric()
         if observed_fraction == 1:
             w_h = ridge_weights(y, cfg.basis_human, cfg.ridge)
-            logp, d2 = gating_scores(w_h, comps, metric)
+            logp, d2 = gating_scores(w_h, comps, metric, self._whitened_means())
             return self._decide(logp, d2, h, np.ones(len(comps)))
-        Phi_o = cfg.basis_human.phi(np.linspace(0.0, observed_fraction, y.shape[0]))
-        logp, d2, dof = self._prefix_scores(y, [Phi_o] * len(comps), metric)
-        return self._decide(logp, d2, dof, np.full(len(comps), observed_fraction))
+        return self._score_prefix(y, np.full((1, len(comps)), float(observed_fraction)))
 
-    def _prefix_scores(self, y, Phis, metric):
+    def _score_prefix(self, ys, phases: np.ndarray) -> Recognition:
+        """Score the samples ``ys`` (m, D) against every component at each row of ``phases`` (F, K).
+
+        Per component the phase of the highest likelihood wins (the first of equals),
+        and its fit statistic and degrees of freedom are the component's. A library of
+        more than :data:`PRUNE_MIN_COMPONENTS` components under the chi-square test
+        scores only the components :func:`~drake_skills.library.prefix.prefix_candidates`
+        does not rule out; the others cannot explain the samples and are reported with
+        log-likelihood -inf, distance inf and their path-length phase.
+        """
+        cfg = self.config
         comps = self._components
-        K = len(comps)
-        logp, d2, dof = np.empty(K), np.empty(K), np.empty(K)
-        for i, (c, Phi_o) in enumerate(zip(comps.items, Phis)):
-            S = metric.cov * (1.0 + 1.0 / c.support)
-            logp[i], d2[i], dof[i] = prefix_statistics(comps.means_h[i], S, Phi_o, y, self.config.observation_noise)
-        return logp, d2, dof
+        h, K = self.n_human, len(comps)
+        F = phases.shape[0]
+        metric = self._metric()
+        inflate = 1.0 + 1.0 / comps.support
+        idx = np.arange(K)
+        if K > PRUNE_MIN_COMPONENTS and isinstance(self._rule, Chi2Rule):
+            sigma_max = self._cached("sigma_max", lambda: float(np.linalg.eigvalsh(metric.cov)[-1]))
+            keep = prefix_candidates(comps.means_h, inflate, phases, ys, sigma_max, cfg.basis_human,
+                                     cfg.observation_noise, chi2_ppf(cfg.novelty_quantile, h))
+            idx = np.flatnonzero(keep)
+        logp, d2 = np.full(K, -np.inf), np.full(K, np.inf)
+        dof, best_phase = np.full(K, float(h)), phases[F // 2].copy()
+        n = idx.size
+        if n:
+            pairs = PrefixPairs(np.tile(comps.means_h[idx], (F, 1)), np.tile(inflate[idx], F), phases[:, idx].ravel(),
+                                ys, metric.chol, cfg.basis_human, cfg.observation_noise)
+            lp = pairs.loglik.reshape(F, n)
+            sel = np.argmax(lp, axis=0)  # the first phase of the highest likelihood, as a sequential search keeps it
+            d2[idx], dof[idx] = pairs.fit(sel * n + np.arange(n))
+            logp[idx] = lp[sel, np.arange(n)]
+            best_phase[idx] = phases[sel, idx]
+        return self._decide(logp, d2, dof, best_phase, scored=None if n == K else idx)
 
     def _recognize_prefix(self, y, length: float) -> Recognition:
         """Recognition with the phase estimated per component (see :meth:`recognize`)."""
@@ -521,24 +575,11 @@ class SkillLibrary:
         h = self.n_human
         if not len(comps):
             return self._empty_recognition(h)
-        metric = gating_metric(self._scale, h, cfg)
-        lengths = np.array([max(c.cluster.path_length, 1e-12) for c in comps.items])
-        guess = length / lengths
+        guess = length / np.maximum(comps.path_length, 1e-12)
         m = max(2, int(round(cfg.n_samples * min(1.0, float(np.median(np.minimum(guess, 1.0)))))))
         ys = _resample_path(y, m, cfg.resample_tolerance)
-        best = None
-        for factor in PHASE_GRID:
-            f = np.clip(guess * factor, 1.0 / cfg.n_samples, 1.0)
-            Phis = [cfg.basis_human.phi(np.linspace(0.0, fk, m)) for fk in f]
-            lp, dd, df = self._prefix_scores(ys, Phis, metric)
-            if best is None:
-                best = [lp, dd, df, f]
-            else:
-                better = lp > best[0]
-                for arr, new in zip(best, (lp, dd, df, f)):
-                    arr[better] = new[better]
-        logp, d2, dof, phases = best
-        return self._decide(logp, d2, dof, phases)
+        phases = np.stack([np.clip(guess * factor, 1.0 / cfg.n_samples, 1.0) for factor in PHASE_GRID])
+        return self._score_prefix(ys, phases)
 
     def predict_robot(self, human, observed_fraction: float | None = None, *, workspace: Workspace | None = None,
                       component: int | None = None, n_steps: int | None = None, normalized: bool = False):
@@ -603,10 +644,10 @@ class SkillLibrary:
     def _phase_of(self, y, length: float, c: ComponentModel) -> float:
         """The phase of one component that explains the normalized path ``y`` best (over :data:`PHASE_GRID`)."""
         cfg = self.config
-        metric = gating_metric(self._scale, self.n_human, cfg)
+        metric = self._metric()
         guess = length / max(c.cluster.path_length, 1e-12)
         best = (-np.inf, 1.0)
-        i = self._components.ids.index(c.id)
+        i = self._components.index(c.id)
         for factor in PHASE_GRID:
             f = float(np.clip(guess * factor, 1.0 / cfg.n_samples, 1.0))
             m = max(2, int(round(cfg.n_samples * f)))

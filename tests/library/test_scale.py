@@ -9,6 +9,7 @@ import pytest
 
 from drake_skills import LibraryConfig, SkillLibrary
 from drake_skills.data.synthetic import skill_bank
+from drake_skills.library import incremental
 from drake_skills.library.novelty import novelty_rule
 
 from brute_force import Reference
@@ -85,13 +86,25 @@ def test_partial_fit_matches_the_reference_through_merges_splits_and_deletions(l
 
 
 def _assert_same_answer(rec, expect, *, exact_arrays=True):
+    """Same status, component and posterior; the same statistics for every component scored.
+
+    A pruned prefix recognition does not score the components its bound rules out
+    (log-likelihood -inf): those must be ones the reference finds novel.
+    """
     assert rec.status == expect["status"] and rec.component == expect["component"]
     assert rec.ids == expect["ids"]
     np.testing.assert_array_equal(rec.posterior > 0, expect["posterior"] > 0)
     tol = dict(rtol=0, atol=0) if exact_arrays else dict(rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(rec.posterior, expect["posterior"], **tol)
-    np.testing.assert_allclose(rec.log_likelihoods, expect["log_likelihoods"], **tol)
-    np.testing.assert_array_equal(rec.phases, expect["phases"])
+    scored = np.isfinite(rec.log_likelihoods)
+    assert not (expect["posterior"][~scored] > 0).any()
+    np.testing.assert_allclose(rec.log_likelihoods[scored], expect["log_likelihoods"][scored], **tol)
+    np.testing.assert_allclose(rec.mahalanobis_sq[scored], expect["mahalanobis_sq"][scored],
+                               **(tol if exact_arrays else dict(rtol=1e-8, atol=1e-6)))
+    np.testing.assert_allclose(np.broadcast_to(rec.dof, scored.shape)[scored],
+                               np.broadcast_to(expect["dof"], scored.shape)[scored], **tol)
+    np.testing.assert_array_equal(rec.phases[scored], expect["phases"][scored])
+    return scored
 
 
 def _probes(bank, rng, n=12):
@@ -120,30 +133,112 @@ def synthetic_library():
     return bank, lib, ref, rng
 
 
-def test_recognize_answers_as_the_brute_force_reference(synthetic_library):
-    """Whole motions (one matrix product) and prefixes (phase searched per component): same answers."""
+def test_recognize_answers_as_the_brute_force_reference(synthetic_library, monkeypatch):
+    """Whole motions (one matrix product) and prefixes (all pairs batched, none pruned): same answers and statistics."""
+    monkeypatch.setattr(incremental, "PRUNE_MIN_COMPONENTS", 10 ** 9)
     bank, lib, ref, rng = synthetic_library
     statuses = set()
     for human in _probes(bank, rng):
         whole, prefix = _reference_answers(lib, ref, human)
         _assert_same_answer(lib.recognize(human, observed_fraction=1.0), whole)
-        _assert_same_answer(lib.recognize(human), prefix, exact_arrays=False)
+        assert _assert_same_answer(lib.recognize(human), prefix, exact_arrays=False).all()
         statuses |= {whole["status"], prefix["status"]}
     assert {"skill", "unknown"} <= statuses
 
 
-def test_recognize_answers_as_the_reference_on_letters_with_undecided_answers(letters):
+def test_pruned_prefix_recognition_answers_as_brute_force_and_scores_few_components(synthetic_library):
+    """40 components (above PRUNE_MIN_COMPONENTS): the bound rules out most, and every answer is the reference's."""
+    bank, lib, ref, rng = synthetic_library
+    assert lib.n_components > incremental.PRUNE_MIN_COMPONENTS
+    n_scored = []
+    for human in _probes(bank, rng, n=20):
+        _, prefix = _reference_answers(lib, ref, human)
+        n_scored.append(_assert_same_answer(lib.recognize(human), prefix, exact_arrays=False).sum())
+        fraction = float(rng.uniform(0.3, 0.9))
+        part = human[: int(len(human) * fraction)]
+        y = lib.human_samples(part, observed_fraction=fraction)
+        expect = ref.recognize_fixed(y, fraction, lib.has_robot, lib.shared_covariance("expert"))
+        _assert_same_answer(lib.recognize(part, observed_fraction=fraction), expect, exact_arrays=False)
+    assert np.median(n_scored) <= 5, n_scored
+
+
+@pytest.mark.parametrize("prune", [False, True])
+def test_recognize_answers_as_the_reference_on_letters_with_undecided_answers(letters, prune, monkeypatch):
+    """Letters: big fit residuals and close skills; with the pruning forced on, still the reference's answers."""
+    monkeypatch.setattr(incremental, "PRUNE_MIN_COMPONENTS", 0 if prune else 10 ** 9)
     demos, ws = letters
     rng = np.random.default_rng(4)
     order = rng.permutation(len(demos))
     train, test = order[:30], order[30:]
     lib, ref = _learn_both([demos[j] for j in train], LibraryConfig(workspace=ws))
-    statuses = set()
+    statuses, scored = set(), []
     for j in test:
         h = demos[j].human
-        for human in (h, h[: len(h) // 2]):
-            whole, prefix = _reference_answers(lib, ref, human)
-            _assert_same_answer(lib.recognize(human, observed_fraction=1.0), whole)
-            _assert_same_answer(lib.recognize(human), prefix, exact_arrays=False)
+        for k in (len(h), len(h) // 2, len(h) // 4):
+            whole, prefix = _reference_answers(lib, ref, h[:k])
+            _assert_same_answer(lib.recognize(h[:k], observed_fraction=1.0), whole)
+            scored.append(_assert_same_answer(lib.recognize(h[:k]), prefix, exact_arrays=False).mean())
             statuses |= {whole["status"], prefix["status"]}
     assert {"skill", "unknown", "undecided"} <= statuses, statuses
+    assert (np.mean(scored) < 1.0) == prune
+
+
+def test_library_state_names_the_cluster_with_nan_after_testing_all_arrays_at_once(synthetic_library):
+    _, lib, _, _ = synthetic_library
+    state = lib.state()
+    c = state.components[7]
+    sub = c.subclusters[1]
+    bad = replace(sub, mean=np.where(np.arange(sub.mean.size) == 3, np.nan, sub.mean))
+    with pytest.raises(ValueError, match=f"sub-cluster 1 of component {c.id} has NaN"):
+        replace(state, components=state.components[:7] + (replace(c, subclusters=(c.subclusters[0], bad)),)
+                + state.components[8:])
+
+
+def _prefix_problem(lib, human):
+    """The samples and the (factor, component) phases prefix recognition scores, as the library prepares them."""
+    cfg, comps = lib.config, lib._components
+    y, length = lib._normalized(human, None, False)
+    guess = length / np.maximum(comps.path_length, 1e-12)
+    m = max(2, int(round(cfg.n_samples * min(1.0, float(np.median(np.minimum(guess, 1.0)))))))
+    ys = incremental._resample_path(y, m, cfg.resample_tolerance)
+    phases = np.stack([np.clip(guess * f, 1.0 / cfg.n_samples, 1.0) for f in incremental.PHASE_GRID])
+    return ys, phases
+
+
+@pytest.mark.parametrize("data", ["synthetic", "letters"])
+def test_the_pruning_bound_lies_below_the_exact_fit_statistic_of_every_component_and_phase(
+        data, synthetic_library, letters):
+    """The bound is checked where it matters: against d2 of all pairs, on skills far apart and on close letters."""
+    from drake_skills.library.prefix import PrefixPairs, fit_lower_bounds, prefix_candidates
+
+    if data == "synthetic":
+        bank, lib, _, rng = synthetic_library
+        humans = _probes(bank, rng, n=8)
+    else:
+        demos, ws = letters
+        lib = SkillLibrary(LibraryConfig(workspace=ws))
+        for d in demos[::2]:
+            lib.partial_fit(d)
+        humans = [d.human[: int(len(d.human) * f)] for d in demos[1::6] for f in (0.2, 0.5, 1.0)]
+    cfg, comps = lib.config, lib._components
+    metric = lib._metric()
+    inflate = 1.0 + 1.0 / comps.support
+    sigma_max = float(np.linalg.eigvalsh(metric.cov)[-1])
+    threshold = incremental.chi2_ppf(cfg.novelty_quantile, lib.n_human)
+    pruned = []
+    for human in humans:
+        ys, phases = _prefix_problem(lib, human)
+        F, K = phases.shape
+        pairs = PrefixPairs(np.tile(comps.means_h, (F, 1)), np.tile(inflate, F), phases.ravel(), ys, metric.chol,
+                            cfg.basis_human, cfg.observation_noise)
+        d2 = pairs.fit(np.arange(F * K))[0].reshape(F, K)
+        for q in (4, 8):
+            bound = fit_lower_bounds(comps.means_h, inflate, phases, ys, sigma_max, cfg.basis_human,
+                                     cfg.observation_noise, n_probes=q)
+            assert (bound <= d2 + 1e-6 * (1 + d2)).all(), np.max(bound - d2)
+        keep = prefix_candidates(comps.means_h, inflate, phases, ys, sigma_max, cfg.basis_human,
+                                 cfg.observation_noise, threshold)
+        assert keep[(d2 <= threshold).any(axis=0)].all()
+        pruned.append(1.0 - keep.mean())
+    if data == "synthetic":
+        assert np.mean(pruned) > 0.8, pruned
