@@ -113,7 +113,7 @@ def test_missing_directory_is_a_clear_error(tmp_path, capsys):
 
 
 LIBRARY_COMMANDS = [["demo"], ["learn", "DIR"], ["bench"], ["eval", "letters"], ["eval", "salad"],
-                    ["eval", "sensitivity"]]
+                    ["eval", "sensitivity"], ["eval", "scale"]]
 
 
 @pytest.mark.parametrize("command", LIBRARY_COMMANDS, ids=lambda c: " ".join(c[:2]))

@@ -69,7 +69,7 @@ log = logging.getLogger(__name__)
 PHASE_GRID = (0.8, 0.9, 1.0, 1.1, 1.25)
 #: Above this many components, prefix recognition scores only the components a cheap
 #: bound does not rule out (:func:`~drake_skills.library.prefix.prefix_candidates`).
-PRUNE_MIN_COMPONENTS = 32
+PRUNE_MIN_COMPONENTS = 16
 
 
 def _read_only(a: np.ndarray) -> np.ndarray:

@@ -31,7 +31,7 @@ _LOG_2PI = np.log(2.0 * np.pi)
 #: half of them for every component, all of them for the components the first pass leaves.
 N_PROBES = 8
 #: Phases at which the basis fit residual of the observed samples is evaluated for the bound.
-N_RESIDUAL_PHASES = 16
+N_RESIDUAL_PHASES = 8
 #: Safety factor on that residual (it is evaluated at a grid of phases, not at every component's).
 RESIDUAL_MARGIN = 2.0
 
@@ -243,7 +243,7 @@ def prefix_candidates(means_h, inflate, phases, ys, sigma_max: float, basis: Gau
     """
     keep = np.ones(phases.shape[1], bool)
     E = residual_bound(ys, phases, basis, noise_var)
-    for q in (N_PROBES // 2, N_PROBES):  # a coarse pass over all components, a finer one over those left
+    for q in (3, N_PROBES):  # a coarse pass over all components, a finer one over those left
         idx = np.flatnonzero(keep)
         bound = fit_lower_bounds(means_h[idx], inflate[idx], phases[:, idx], ys, sigma_max, basis, noise_var,
                                  n_probes=q, residual=E)
