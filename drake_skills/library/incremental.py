@@ -35,6 +35,14 @@ Where it departs from the paper, and why (RESULTS.md has the measurements):
 * **Deletion** by age and support, with the age limit growing with the number of
   components (``delete_min_age K / 5``), so that a library of many skills, each
   shown rarely, does not delete them before their second demonstration.
+
+Cost against the number of components K (issue 19; ``drake-skills bench --suite
+scale``): a step and a whole-motion recognition are a few matrix products over the
+K whitened means plus work on the components that change; a motion's beginning is
+scored for all (component, phase) pairs at once (:mod:`drake_skills.library.prefix`)
+and, above :data:`PRUNE_MIN_COMPONENTS`, only for the components a cheap lower bound
+does not rule out. The answers are those of scoring every component one by one
+(``tests/library/test_scale.py`` checks them against that reference).
 """
 from __future__ import annotations
 

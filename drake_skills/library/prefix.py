@@ -27,11 +27,14 @@ import numpy as np
 from drake_skills.promp.basis import GaussianBasis
 
 _LOG_2PI = np.log(2.0 * np.pi)
-#: Samples of the observed beginning the pruning bound looks at (evenly spaced, the last included):
-#: half of them for every component, all of them for the components the first pass leaves.
+#: Samples of the observed beginning the pruning bound looks at in its second pass (evenly
+#: spaced, the last included; the first pass looks at 3).
 N_PROBES = 8
 #: Phases at which the basis fit residual of the observed samples is evaluated for the bound.
 N_RESIDUAL_PHASES = 8
+#: Relative cut-off of the pseudo-inverse of the basis Gram matrix (as in
+#: :func:`~drake_skills.promp.interaction.prefix_statistics`).
+PINV_RCOND = 1e-10
 #: Safety factor on that residual (it is evaluated at a grid of phases, not at every component's).
 RESIDUAL_MARGIN = 2.0
 
@@ -138,7 +141,7 @@ class PrefixPairs:
         """``d2`` and ``dof`` (as :func:`~drake_skills.promp.interaction.prefix_statistics`) of the pairs ``idx``."""
         idx = np.asarray(idx, dtype=int)
         U = self.U[idx]
-        Pinv = np.linalg.pinv(self.P[idx], rcond=1e-10, hermitian=True)
+        Pinv = np.linalg.pinv(self.P[idx], rcond=PINV_RCOND, hermitian=True)
         span = np.einsum("nid,nij,njd->n", U, Pinv, U)
         d2 = np.maximum((span - self.explained[idx]) / self.noise, 0.0)
         R = self.R[idx]
@@ -177,7 +180,12 @@ def fit_lower_bounds(means_h, inflate, phases, ys, sigma_max: float, basis: Gaus
         rr += np.einsum("qfk,qfk->fk", r, r)
     # lambda_max(Phi_I Phi_I^T) <= (largest column sum) x (largest row sum) of Phi_I (entries >= 0)
     lam = G.sum(axis=1).max(axis=0) * G.sum(axis=0).max(axis=0)      # (F, K)
-    return rr / (noise_var + inflate * sigma_max * lam) - E / noise_var
+    # what the directions the pseudo-inverse drops (eigenvalues below PINV_RCOND of the
+    # largest, at most m or m N) can add to the residual through the component's mean
+    eps = N * PINV_RCOND * m * (1.0 if basis.normalized else N)
+    norm_m = np.sqrt(np.einsum("ki,ki->k", means_h, means_h))
+    dropped = 2.0 * np.sqrt(eps) * norm_m * float(np.sqrt(np.sum(ys * ys))) + eps * norm_m ** 2
+    return rr / (noise_var + inflate * sigma_max * lam) - (E + dropped) / noise_var
 
 
 def fit_residual(ys: np.ndarray, phases: np.ndarray, basis: GaussianBasis) -> np.ndarray:
@@ -189,7 +197,7 @@ def fit_residual(ys: np.ndarray, phases: np.ndarray, basis: GaussianBasis) -> np
     Phi = basis_rows(basis, phase_samples(phases, m))               # (g, m, N)
     PhiT = Phi.transpose(0, 2, 1)
     b = PhiT @ ys                                                   # (g, N, D)
-    Pinv = np.linalg.pinv(PhiT @ Phi, rcond=1e-10, hermitian=True)
+    Pinv = np.linalg.pinv(PhiT @ Phi, rcond=PINV_RCOND, hermitian=True)
     return np.maximum(float(np.sum(ys * ys)) - np.einsum("gid,gij,gjd->g", b, Pinv, b), 0.0)
 
 
@@ -234,12 +242,16 @@ def prefix_candidates(means_h, inflate, phases, ys, sigma_max: float, basis: Gau
     with ``lambda_I = |Phi_I|_1 |Phi_I|_inf`` (largest column sum times largest row sum,
     1 for a normalized basis; the entries are positive, and the largest singular value
     squared is at most that product).
-    Everything but ``E`` is exact at each component's own phase; ``E`` depends on the
-    phase only, and is taken as :data:`RESIDUAL_MARGIN` times its largest value over
-    :data:`N_RESIDUAL_PHASES` phases spanning those of the components, plus
-    ``sigma^2`` (the one step that is not a proof: the residual of a smooth basis fit
-    varies slowly with the phase; the test suite checks that pruned and brute-force
-    answers agree).
+    Everything but ``E`` is exact at each component's own phase. ``E`` (with the
+    pseudo-inverse's cut-off, as ``d2`` computes it) is a function of the phase plus a
+    term, through the directions the cut-off drops, that is bounded by the norm of
+    the component's mean; the function of the phase is taken as
+    :data:`RESIDUAL_MARGIN` times its largest value over :data:`N_RESIDUAL_PHASES`
+    phases spanning those of the components, plus ``sigma^2``. That is the one step
+    that is not a proof; the test suite checks the bound against the exact ``d2`` of
+    every (component, phase) pair and the answers against scoring every component.
+    A first pass with 3 probe samples rules out most components, a second with
+    :data:`N_PROBES` the rest.
     """
     keep = np.ones(phases.shape[1], bool)
     E = residual_bound(ys, phases, basis, noise_var)

@@ -143,6 +143,12 @@ class Recognition:
     ``status`` is "skill" (``component`` is its id), "undecided" (more than one skill
     explains the motion and none is ``1 - decision_risk`` probable: wait for more of
     it) or "unknown" (no skill explains it: ask for a demonstration).
+
+    A motion's beginning recognized without a fraction in a library of more than
+    ``PRUNE_MIN_COMPONENTS`` (16) components is scored only against the components a
+    lower bound does not rule out (:func:`~drake_skills.library.prefix.prefix_candidates`);
+    the others have log-likelihood -inf, distance inf and responsibility 0 (they
+    cannot explain the motion, so the answer is the one scoring all of them gives).
     """
 
     #: k* when ``status == "skill"``, else None.
