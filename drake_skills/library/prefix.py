@@ -157,10 +157,7 @@ def score_prefix(y: np.ndarray, guess: np.ndarray, means_h: np.ndarray, inflate:
     """
     K = means_h.shape[0]
     grid = np.array(PHASE_GRID)
-    g = np.clip(np.asarray(guess, float), grid[0], 1.0)
-    lo, hi = g / PHASE_BAND, np.minimum(g * PHASE_BAND, 1.0)
-    wanted = (grid[None, :] >= lo[:, None] - 1e-12) & (grid[None, :] <= hi[:, None] + 1e-12)
-    wanted[np.arange(K), np.abs(grid[None, :] - g[:, None]).argmin(axis=1)] = True
+    wanted = _band(guess)
     cols = np.flatnonzero(wanted.any(axis=0))
     ll, d2, dof = score_phases(y, tuple(grid[cols]), means_h, inflate, chol, basis, noise_var, cache)
     mask = wanted[:, cols].T                                  # (J', K)
@@ -171,3 +168,25 @@ def score_prefix(y: np.ndarray, guess: np.ndarray, means_h: np.ndarray, inflate:
     # allows (uniform), not the best of them, which would favour the components that allow many
     marginal = logsumexp(masked, axis=0) - np.log(mask.sum(axis=0))
     return PrefixScores(marginal, d2[best, k], dof[best, k], grid[cols][best])
+
+
+def _band(guess) -> np.ndarray:
+    """Which phases of :data:`PHASE_GRID` each component's band allows: a mask, shape (K, len(PHASE_GRID))."""
+    grid = np.array(PHASE_GRID)
+    g = np.clip(np.asarray(guess, float), grid[0], 1.0)
+    lo, hi = g / PHASE_BAND, np.minimum(g * PHASE_BAND, 1.0)
+    wanted = (grid[None, :] >= lo[:, None] - 1e-12) & (grid[None, :] <= hi[:, None] + 1e-12)
+    wanted[np.arange(g.size), np.abs(grid[None, :] - g[:, None]).argmin(axis=1)] = True
+    return wanted
+
+
+def band_phases(guess) -> np.ndarray:
+    """The phases :func:`score_prefix` tries for each component, shape (F, K): its band, padded by repeating
+    its first phase (for :func:`~drake_skills.library.prefix_bound.prefix_candidates`)."""
+    wanted = _band(guess)
+    grid = np.array(PHASE_GRID)
+    count = wanted.sum(axis=1)
+    F = int(count.max())
+    order = np.argsort(~wanted, axis=1, kind="stable")[:, :F]   # the allowed phases first, in order
+    order = np.where(np.arange(F)[None, :] < count[:, None], order, order[:, :1])
+    return grid[order].T
