@@ -72,7 +72,7 @@ from drake_skills.library.algorithm import (ComponentModel, Components, Metric, 
                                             gating_scores, responsibilities)
 from drake_skills.library.config import NOVELTY_TESTS, LibraryConfig, WorkspaceBounds
 from drake_skills.library.novelty import Chi2Rule, chi2_ppf, novelty_rule
-from drake_skills.library.prefix import band_phases, score_at_phase, score_prefix
+from drake_skills.library.prefix import PHASE_GRID, phase_band, score_at_phase, score_prefix
 from drake_skills.library.prefix_bound import prefix_candidates
 from drake_skills.library.scale import Cluster, SharedScale, observation_noise, shared_covariance
 from drake_skills.library.state import ComponentState, LibraryState
@@ -644,14 +644,15 @@ class SkillLibrary:
         inflate = 1.0 + 1.0 / comps.support
         noise = self._noise()
         idx = None
+        band = phase_band(guess)
         if len(comps) > PRUNE_MIN_COMPONENTS and isinstance(self._rule, Chi2Rule):
             sigma_max = self._cached("sigma_max", lambda: float(np.linalg.eigvalsh(metric.cov)[-1]))
-            keep = prefix_candidates(comps.means_h, inflate, band_phases(guess), ys, sigma_max, cfg.basis_human,
-                                     noise, chi2_ppf(cfg.novelty_quantile, self.n_human))
+            keep = prefix_candidates(comps.means_h, inflate, PHASE_GRID, band, ys, sigma_max,
+                                     cfg.basis_human, noise, chi2_ppf(cfg.novelty_quantile, self.n_human))
             idx = np.flatnonzero(keep)
         if idx is None or idx.size == len(comps):
             sc = score_prefix(ys, guess, comps.means_h, inflate, metric.chol, cfg.basis_human, noise,
-                              self._prefix_cache(metric))
+                              self._prefix_cache(metric), band)
             return self._decide(sc.log_likelihoods, sc.mahalanobis_sq, sc.dof, sc.phases)
         # the components ruled out cannot explain the samples: log-likelihood -inf, distance inf
         K = len(comps)
@@ -659,7 +660,7 @@ class SkillLibrary:
         dof, phases = np.full(K, float(self.n_human)), np.clip(guess, 1.0 / cfg.n_samples, 1.0)
         if idx.size:
             sc = score_prefix(ys, guess[idx], comps.means_h[idx], inflate[idx], metric.chol, cfg.basis_human, noise,
-                              self._prefix_cache(metric))
+                              self._prefix_cache(metric), band[idx])
             logp[idx], d2[idx], dof[idx], phases[idx] = sc.log_likelihoods, sc.mahalanobis_sq, sc.dof, sc.phases
         return self._decide(logp, d2, dof, phases, scored=idx)
 

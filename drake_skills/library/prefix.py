@@ -145,7 +145,8 @@ def score_at_phase(y, f: float, means_h, inflate, chol, basis: GaussianBasis, no
 
 
 def score_prefix(y: np.ndarray, guess: np.ndarray, means_h: np.ndarray, inflate: np.ndarray, chol: np.ndarray,
-                 basis: GaussianBasis, noise_var: float, cache: dict | None = None) -> PrefixScores:
+                 basis: GaussianBasis, noise_var: float, cache: dict | None = None,
+                 band: np.ndarray | None = None) -> PrefixScores:
     """Each component scored at its most likely phase of :data:`PHASE_GRID` near its path-length guess.
 
     Parameters
@@ -153,11 +154,13 @@ def score_prefix(y: np.ndarray, guess: np.ndarray, means_h: np.ndarray, inflate:
     y : array, shape (m, D)
     guess : array, shape (K,)
         Observed path length over each component's mean path length.
+    band : array of bool, shape (K, len(PHASE_GRID)), optional
+        :func:`phase_band` of ``guess`` (computed if not given).
     (the rest as :func:`score_phases`)
     """
     K = means_h.shape[0]
     grid = np.array(PHASE_GRID)
-    wanted = _band(guess)
+    wanted = phase_band(guess) if band is None else band
     cols = np.flatnonzero(wanted.any(axis=0))
     ll, d2, dof = score_phases(y, tuple(grid[cols]), means_h, inflate, chol, basis, noise_var, cache)
     mask = wanted[:, cols].T                                  # (J', K)
@@ -170,7 +173,7 @@ def score_prefix(y: np.ndarray, guess: np.ndarray, means_h: np.ndarray, inflate:
     return PrefixScores(marginal, d2[best, k], dof[best, k], grid[cols][best])
 
 
-def _band(guess) -> np.ndarray:
+def phase_band(guess) -> np.ndarray:
     """Which phases of :data:`PHASE_GRID` each component's band allows: a mask, shape (K, len(PHASE_GRID))."""
     grid = np.array(PHASE_GRID)
     g = np.clip(np.asarray(guess, float), grid[0], 1.0)
@@ -179,14 +182,3 @@ def _band(guess) -> np.ndarray:
     wanted[np.arange(g.size), np.abs(grid[None, :] - g[:, None]).argmin(axis=1)] = True
     return wanted
 
-
-def band_phases(guess) -> np.ndarray:
-    """The phases :func:`score_prefix` tries for each component, shape (F, K): its band, padded by repeating
-    its first phase (for :func:`~drake_skills.library.prefix_bound.prefix_candidates`)."""
-    wanted = _band(guess)
-    grid = np.array(PHASE_GRID)
-    count = wanted.sum(axis=1)
-    F = int(count.max())
-    order = np.argsort(~wanted, axis=1, kind="stable")[:, :F]   # the allowed phases first, in order
-    order = np.where(np.arange(F)[None, :] < count[:, None], order, order[:, :1])
-    return grid[order].T

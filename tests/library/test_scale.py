@@ -198,14 +198,14 @@ def test_library_state_names_the_cluster_with_nan_after_testing_all_arrays_at_on
 
 
 def _prefix_problem(lib, human):
-    """The samples and the (phase, component) pairs prefix recognition scores, as the library prepares them."""
-    from drake_skills.library.prefix import band_phases
+    """The samples and the phases each component allows (K, 20), as the library prepares them."""
+    from drake_skills.library.prefix import phase_band
 
     cfg, comps = lib.config, lib._components
     path = lib._normalized(human, None, False)
     guess = path.length / np.maximum(comps.path_length, 1e-12)
     ys = path.resample(incremental._prefix_samples(cfg.n_samples, float(np.median(np.minimum(guess, 1.0)))))
-    return ys, band_phases(guess)
+    return ys, phase_band(guess)
 
 
 @pytest.mark.parametrize("data", ["synthetic", "letters"])
@@ -230,19 +230,18 @@ def test_the_pruning_bound_lies_below_the_exact_fit_statistic_of_every_component
     sigma_max = float(np.linalg.eigvalsh(metric.cov)[-1])
     threshold = incremental.chi2_ppf(cfg.novelty_quantile, lib.n_human)
     pruned = []
+    grid = np.array(PHASE_GRID)
+    noise = lib.observation_noise()
     for human in humans:
-        ys, phases = _prefix_problem(lib, human)
-        F, K = phases.shape
-        noise = lib.observation_noise()
-        grid = np.array(PHASE_GRID)
-        _, d2_all, _ = score_phases(ys, grid, comps.means_h, inflate, metric.chol, cfg.basis_human, noise)
-        d2 = d2_all[np.abs(phases[..., None] - grid).argmin(axis=-1), np.arange(K)]   # (F, K)
-        for q in (4, 8):
-            bound = fit_lower_bounds(comps.means_h, inflate, phases, ys, sigma_max, cfg.basis_human, noise,
-                                     n_probes=q)
+        ys, allowed = _prefix_problem(lib, human)
+        _, d2, _ = score_phases(ys, grid, comps.means_h, inflate, metric.chol, cfg.basis_human, noise)
+        d2 = d2.T                                                       # (K, 20): every component at every phase
+        for q in (3, 8):
+            bound = fit_lower_bounds(comps.means_h, inflate, grid, ys, sigma_max, cfg.basis_human, noise, n_probes=q)
             assert (bound <= d2 + 1e-6 * (1 + d2)).all(), np.max(bound - d2)
-        keep = prefix_candidates(comps.means_h, inflate, phases, ys, sigma_max, cfg.basis_human, noise, threshold)
-        assert keep[(d2 <= threshold).any(axis=0)].all()
+        keep = prefix_candidates(comps.means_h, inflate, grid, allowed, ys, sigma_max, cfg.basis_human, noise,
+                                 threshold)
+        assert keep[((d2 <= threshold) & allowed).any(axis=1)].all()
         pruned.append(1.0 - keep.mean())
     if data == "synthetic":
         assert np.mean(pruned) > 0.8, pruned
