@@ -81,7 +81,7 @@ def test_version_is_printed_anywhere(argv, capsys):
 
 #: The commands in which something is random (the presentation order, the simulated data, the trials).
 SEEDED = {"learn", "generate", "demo", "tune", "control", "eval letters", "eval salad", "eval sensitivity",
-          "eval interaction"}
+          "eval interaction", "eval scale"}
 
 
 def test_seed_is_offered_only_where_something_is_random():
@@ -319,7 +319,7 @@ def test_bench_runs_a_suite_and_prints_within_100_columns(tmp_path, capsys):
 
 
 LIBRARY_COMMANDS = [["demo"], ["learn", "DIR"], ["bench"], ["eval", "letters"], ["eval", "salad"],
-                    ["eval", "sensitivity"], ["eval", "interaction"], ["tune", "DIR"]]
+                    ["eval", "sensitivity"], ["eval", "interaction"], ["eval", "scale"], ["tune", "DIR"]]
 
 
 @pytest.mark.parametrize("command", LIBRARY_COMMANDS, ids=lambda c: " ".join(c[:2]))

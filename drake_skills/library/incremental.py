@@ -45,6 +45,14 @@ the normalized range the settings assume (:class:`~drake_skills.library.views.Un
 see :data:`UNITS_RANGE`: metres or millimetres given without a workspace would
 otherwise merge or split silently). Whether the library was trained with a workspace
 is part of its state and of its file.
+
+Cost against the number of components K (issue 19; ``drake-skills bench --suite
+scale``): a step and a whole-motion recognition are a few matrix products over the
+K whitened means plus work on the components that change; a motion's beginning is
+scored for all (component, phase) pairs at once (:mod:`drake_skills.library.prefix`)
+and, above :data:`PRUNE_MIN_COMPONENTS`, only for the components a cheap lower bound
+does not rule out. The answers are those of scoring every component one by one
+(``tests/library/test_scale.py`` checks them against that reference).
 """
 from __future__ import annotations
 
@@ -60,11 +68,12 @@ from drake_skills._checks import as_finite_array
 from drake_skills.data.demonstration import Demonstration
 from drake_skills.data.workspace import Workspace
 from drake_skills.library import storage
-from drake_skills.library.algorithm import (ComponentModel, Components, fold_in, gating_metric, gating_scores,
-                                            responsibilities)
+from drake_skills.library.algorithm import (ComponentModel, Components, Metric, fold_in, gating_metric,
+                                            gating_scores, responsibilities)
 from drake_skills.library.config import NOVELTY_TESTS, LibraryConfig, WorkspaceBounds
-from drake_skills.library.novelty import novelty_rule
-from drake_skills.library.prefix import score_at_phase, score_prefix
+from drake_skills.library.novelty import Chi2Rule, chi2_ppf, novelty_rule
+from drake_skills.library.prefix import PHASE_GRID, phase_band, score_at_phase, score_prefix
+from drake_skills.library.prefix_bound import prefix_candidates
 from drake_skills.library.scale import Cluster, SharedScale, observation_noise, shared_covariance
 from drake_skills.library.state import ComponentState, LibraryState
 from drake_skills.library.views import (Component, DataWarning, Recognition, UnitsWarning, UnknownSkillError,
@@ -87,6 +96,9 @@ log = logging.getLogger(__name__)
 #: box, salad 2.0-7.0, buetepage_hr 4.7-9.9) and 0.03-0.06 given in metres without a
 #: workspace (0.28-0.63 m); in millimetres, 28-63.
 UNITS_RANGE = (0.1, 10.0)
+#: Above this many components, prefix recognition scores only the components a cheap
+#: bound does not rule out (:func:`~drake_skills.library.prefix_bound.prefix_candidates`).
+PRUNE_MIN_COMPONENTS = 16
 
 
 def _read_only(a: np.ndarray) -> np.ndarray:
@@ -129,6 +141,7 @@ class SkillLibrary:
         self._shared = None  # cache: shared stacked covariance of the current scale
         self._with_workspace: bool | None = False  # None: unknown (a file written before it was kept)
         self._warned: set[str] = set()  # DataWarning kinds already issued by this object
+        self._memo: dict = {}  # caches of one library version: name -> ((components, scale), value)
         self.dim_human_: int | None = None
         self.dim_robot_: int | None = None
 
@@ -207,10 +220,10 @@ class SkillLibrary:
         return self._view(c, float(self._components.support.sum()), self.n_human)
 
     def _model(self, component_id: int) -> ComponentModel:
-        for c in self._components.items:
-            if c.id == component_id:
-                return c
-        raise KeyError(f"no component with id {component_id}; ids are {list(self._components.ids)}")
+        try:
+            return self._components.items[self._components.index(component_id)]
+        except (KeyError, TypeError):
+            raise KeyError(f"no component with id {component_id}; ids are {list(self._components.ids)}") from None
 
     def shared_covariance(self, part: str = "gating") -> np.ndarray:
         """The learned within-skill covariance: of the gating weights (h, h) or the stacked weights (d, d).
@@ -254,6 +267,24 @@ class SkillLibrary:
                 cache.pop(next(iter(cache)))
             cache[key] = (c.cluster, C)
         return cache[key][1]
+
+    def _cached(self, name: str, compute):
+        """``compute()`` once per version of the library (components and scale are immutable, so identity is version)."""
+        key = (self._components, self._scale)
+        hit = self._memo.get(name)
+        if hit is not None and hit[0][0] is key[0] and hit[0][1] is key[1]:
+            return hit[1]
+        value = compute()
+        self._memo[name] = (key, value)
+        return value
+
+    def _metric(self) -> Metric:
+        """The gating metric of the current scale."""
+        return self._cached("metric", lambda: gating_metric(self._scale, self.n_human, self.config))
+
+    def _whitened_means(self) -> np.ndarray:
+        """``L^{-1} mu_k`` of every component (K, h): a whole motion's distances are one product away."""
+        return self._cached("whitened", lambda: self._metric().whiten(self._components.means_h))
 
     def as_mixture(self, part: str = "gating"):
         """The library as a Gaussian mixture ``(weights (K,), means (K, d), covs (K, d, d))``.
@@ -528,9 +559,14 @@ class SkillLibrary:
         z = np.zeros(0)
         return Recognition(None, (), z, z, z, dof, "unknown", z, z)
 
-    def _decide(self, logp, d2, dof, phases) -> Recognition:
+    def _decide(self, logp, d2, dof, phases, scored: np.ndarray | None = None) -> Recognition:
+        """The answer from per-component statistics; ``scored``: the components scored (the others cannot fit)."""
         comps = self._components
-        fits = ~self._rule.novel(logp, d2, dof)
+        if scored is None:
+            fits = ~self._rule.novel(logp, d2, dof)
+        else:
+            fits = np.zeros(len(comps), bool)
+            fits[scored] = ~self._rule.novel(logp[scored], d2[scored], dof[scored])
         resp = responsibilities(logp, comps.support)
         post = responsibilities(logp, comps.support, fits)
         ids = comps.ids
@@ -567,9 +603,7 @@ class SkillLibrary:
         mb = comps.items[best].mean[block]
         diff = np.stack([comps.items[j].mean[block] - mb for j in others]) @ Linv.T
         d2 = np.einsum("ij,ij->i", diff, diff) / (1.0 + 1.0 / comps.support[best])
-        dof = Linv.shape[0]
-        from drake_skills.library.novelty import chi2_ppf
-        out[others] = d2 <= chi2_ppf(self.config.novelty_quantile, dof)
+        out[others] = d2 <= chi2_ppf(self.config.novelty_quantile, Linv.shape[0])
         return out
 
     def _response_whitener(self) -> np.ndarray:
@@ -591,7 +625,7 @@ class SkillLibrary:
         metric = self._metric()
         if observed_fraction == 1:
             w_h = ridge_weights(y, cfg.basis_human, cfg.ridge)
-            logp, d2 = gating_scores(w_h, comps, metric)
+            logp, d2 = gating_scores(w_h, comps, metric, self._whitened_means())
             return self._decide(logp, d2, h, np.ones(len(comps)))
         logp, d2, dof = score_at_phase(y, observed_fraction, comps.means_h, 1.0 + 1.0 / comps.support, metric.chol,
                                        cfg.basis_human, self._noise(), self._prefix_cache(metric))
@@ -605,11 +639,30 @@ class SkillLibrary:
         if not len(comps):
             return self._empty_recognition(h)
         metric = self._metric()
-        guess = path.length / np.maximum(comps.path_lengths, 1e-12)
+        guess = path.length / np.maximum(comps.path_length, 1e-12)
         ys = path.resample(_prefix_samples(cfg.n_samples, float(np.median(np.minimum(guess, 1.0)))))
-        sc = score_prefix(ys, guess, comps.means_h, 1.0 + 1.0 / comps.support, metric.chol, cfg.basis_human,
-                          self._noise(), self._prefix_cache(metric))
-        return self._decide(sc.log_likelihoods, sc.mahalanobis_sq, sc.dof, sc.phases)
+        inflate = 1.0 + 1.0 / comps.support
+        noise = self._noise()
+        idx = None
+        band = phase_band(guess)
+        if len(comps) > PRUNE_MIN_COMPONENTS and isinstance(self._rule, Chi2Rule):
+            sigma_max = self._cached("sigma_max", lambda: float(np.linalg.eigvalsh(metric.cov)[-1]))
+            keep = prefix_candidates(comps.means_h, inflate, PHASE_GRID, band, ys, sigma_max,
+                                     cfg.basis_human, noise, chi2_ppf(cfg.novelty_quantile, self.n_human))
+            idx = np.flatnonzero(keep)
+        if idx is None or idx.size == len(comps):
+            sc = score_prefix(ys, guess, comps.means_h, inflate, metric.chol, cfg.basis_human, noise,
+                              self._prefix_cache(metric), band)
+            return self._decide(sc.log_likelihoods, sc.mahalanobis_sq, sc.dof, sc.phases)
+        # the components ruled out cannot explain the samples: log-likelihood -inf, distance inf
+        K = len(comps)
+        logp, d2 = np.full(K, -np.inf), np.full(K, np.inf)
+        dof, phases = np.full(K, float(self.n_human)), np.clip(guess, 1.0 / cfg.n_samples, 1.0)
+        if idx.size:
+            sc = score_prefix(ys, guess[idx], comps.means_h[idx], inflate[idx], metric.chol, cfg.basis_human, noise,
+                              self._prefix_cache(metric), band[idx])
+            logp[idx], d2[idx], dof[idx], phases[idx] = sc.log_likelihoods, sc.mahalanobis_sq, sc.dof, sc.phases
+        return self._decide(logp, d2, dof, phases, scored=idx)
 
     def predict_robot(self, human, observed_fraction: float | None = None, *, workspace: Workspace | None = None,
                       component: int | None = None, n_steps: int | None = None, normalized: bool = False):
@@ -689,12 +742,6 @@ class SkillLibrary:
         if getattr(self, "_prefix", (None,))[0] is not self._scale:
             self._prefix = (self._scale, {})
         return self._prefix[1]
-
-    def _metric(self):
-        """The gating metric of the current scale (cached until the library learns)."""
-        if getattr(self, "_metric_cache", (None,))[0] is not self._scale:
-            self._metric_cache = (self._scale, gating_metric(self._scale, self.n_human, self.config))
-        return self._metric_cache[1]
 
     def estimate_phase(self, human, component: int, *, workspace: Workspace | None = None,
                        normalized: bool = False) -> float:

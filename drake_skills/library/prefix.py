@@ -145,7 +145,8 @@ def score_at_phase(y, f: float, means_h, inflate, chol, basis: GaussianBasis, no
 
 
 def score_prefix(y: np.ndarray, guess: np.ndarray, means_h: np.ndarray, inflate: np.ndarray, chol: np.ndarray,
-                 basis: GaussianBasis, noise_var: float, cache: dict | None = None) -> PrefixScores:
+                 basis: GaussianBasis, noise_var: float, cache: dict | None = None,
+                 band: np.ndarray | None = None) -> PrefixScores:
     """Each component scored at its most likely phase of :data:`PHASE_GRID` near its path-length guess.
 
     Parameters
@@ -153,14 +154,13 @@ def score_prefix(y: np.ndarray, guess: np.ndarray, means_h: np.ndarray, inflate:
     y : array, shape (m, D)
     guess : array, shape (K,)
         Observed path length over each component's mean path length.
+    band : array of bool, shape (K, len(PHASE_GRID)), optional
+        :func:`phase_band` of ``guess`` (computed if not given).
     (the rest as :func:`score_phases`)
     """
     K = means_h.shape[0]
     grid = np.array(PHASE_GRID)
-    g = np.clip(np.asarray(guess, float), grid[0], 1.0)
-    lo, hi = g / PHASE_BAND, np.minimum(g * PHASE_BAND, 1.0)
-    wanted = (grid[None, :] >= lo[:, None] - 1e-12) & (grid[None, :] <= hi[:, None] + 1e-12)
-    wanted[np.arange(K), np.abs(grid[None, :] - g[:, None]).argmin(axis=1)] = True
+    wanted = phase_band(guess) if band is None else band
     cols = np.flatnonzero(wanted.any(axis=0))
     ll, d2, dof = score_phases(y, tuple(grid[cols]), means_h, inflate, chol, basis, noise_var, cache)
     mask = wanted[:, cols].T                                  # (J', K)
@@ -171,3 +171,14 @@ def score_prefix(y: np.ndarray, guess: np.ndarray, means_h: np.ndarray, inflate:
     # allows (uniform), not the best of them, which would favour the components that allow many
     marginal = logsumexp(masked, axis=0) - np.log(mask.sum(axis=0))
     return PrefixScores(marginal, d2[best, k], dof[best, k], grid[cols][best])
+
+
+def phase_band(guess) -> np.ndarray:
+    """Which phases of :data:`PHASE_GRID` each component's band allows: a mask, shape (K, len(PHASE_GRID))."""
+    grid = np.array(PHASE_GRID)
+    g = np.clip(np.asarray(guess, float), grid[0], 1.0)
+    lo, hi = g / PHASE_BAND, np.minimum(g * PHASE_BAND, 1.0)
+    wanted = (grid[None, :] >= lo[:, None] - 1e-12) & (grid[None, :] <= hi[:, None] + 1e-12)
+    wanted[np.arange(g.size), np.abs(grid[None, :] - g[:, None]).argmin(axis=1)] = True
+    return wanted
+

@@ -28,10 +28,10 @@ the stored components (a warning says so).
 
 Writes go to a temporary file in the same directory, then ``os.replace``, so a crash
 never leaves a half-written library. Loading uses ``allow_pickle=False``, reads every
-array's header and checks its shape against the metadata before reading the array
-(a crafted file cannot make it allocate more than the metadata declares, and the
-metadata is bounded), checks finiteness and consistency, and names the file in every
-error.
+array's header first and checks that the file holds the bytes it declares and that its
+shape is the one the metadata says, before reading any array (a crafted file cannot
+make it allocate more than its own size, and the metadata is bounded), checks
+finiteness and consistency, and names the file in every error.
 """
 from __future__ import annotations
 
@@ -55,6 +55,9 @@ SCHEMA_VERSION = 3
 MAX_METADATA_CHARS = 64 * 2 ** 20
 #: Largest number of weights per demonstration a file may declare.
 MAX_WEIGHTS = 10_000
+#: Largest ratio of an array's bytes to its compressed bytes accepted from a compressed
+#: entry (``save`` stores arrays uncompressed; numbers rarely compress beyond a few times).
+MAX_EXPANSION = 64
 
 
 def _cluster_meta(cl: Cluster) -> dict:
@@ -108,8 +111,14 @@ def save_state(state: LibraryState, path) -> Path:
     return path
 
 
-def _headers(z: zipfile.ZipFile, where: str) -> dict:
-    """Shape and dtype of every array of an .npz, read from the headers only."""
+def _headers(z: zipfile.ZipFile, where: str, file_bytes: int) -> dict:
+    """Shape and dtype of every array of an .npz, read from the headers only.
+
+    Also checks that every entry holds the bytes its header declares, and that those
+    bytes are in the file (stored) or at most :data:`MAX_EXPANSION` times the
+    compressed bytes that are: a crafted header cannot make loading allocate memory
+    the file does not back.
+    """
     out = {}
     for info in z.infolist():
         name = info.filename[:-4] if info.filename.endswith(".npy") else info.filename
@@ -121,9 +130,16 @@ def _headers(z: zipfile.ZipFile, where: str) -> dict:
                 shape, fortran, dtype = read(f)
             except ValueError as exc:
                 raise ValueError(f"{where}: entry {name!r} is not a numpy array ({exc})") from None
+            header_bytes = f.tell()
         if dtype.hasobject:
             raise ValueError(f"{where}: entry {name!r} holds Python objects; library files hold only numbers "
                              f"and text (refusing to unpickle)")
+        need = int(np.prod(shape, dtype=object)) * dtype.itemsize
+        backed = info.compress_size * (1 if info.compress_type == zipfile.ZIP_STORED else MAX_EXPANSION)
+        if info.file_size < header_bytes + need or need > backed or \
+                info.header_offset + info.compress_size > file_bytes:
+            raise ValueError(f"{where}: entry {name!r} declares {tuple(shape)} {dtype} ({need} bytes) but the file "
+                             f"holds {info.compress_size} bytes for it (truncated or crafted)")
         out[name] = (tuple(shape), dtype)
     return out
 
@@ -136,7 +152,7 @@ def _read(path: Path, where: str):
         raise ValueError(f"{where} is truncated or not an .npz file")
     try:
         with zipfile.ZipFile(path) as z:
-            headers = _headers(z, where)
+            headers = _headers(z, where, path.stat().st_size)
         if "metadata" not in headers:
             raise ValueError(f"{where} is not a drake-skills library (missing ['metadata'])")
         shape, dtype = headers["metadata"]
