@@ -9,7 +9,7 @@ import pytest
 
 from drake_skills import LibraryConfig, SkillLibrary
 from drake_skills.data.synthetic import skill_bank
-from drake_skills.library import incremental
+from drake_skills.library import recognition
 from drake_skills.library.novelty import novelty_rule
 
 from brute_force import Reference
@@ -138,7 +138,7 @@ def synthetic_library():
 
 def test_recognize_answers_as_the_brute_force_reference(synthetic_library, monkeypatch):
     """Whole motions (one matrix product) and prefixes (all pairs batched, none pruned): same answers and statistics."""
-    monkeypatch.setattr(incremental, "PRUNE_MIN_COMPONENTS", 10 ** 9)
+    monkeypatch.setattr(recognition, "PRUNE_MIN_COMPONENTS", 10 ** 9)
     bank, lib, ref, rng = synthetic_library
     statuses = set()
     for human in _probes(bank, rng, n=7):
@@ -152,7 +152,7 @@ def test_recognize_answers_as_the_brute_force_reference(synthetic_library, monke
 def test_pruned_prefix_recognition_answers_as_brute_force_and_scores_few_components(synthetic_library):
     """40 components (above PRUNE_MIN_COMPONENTS): the bound rules out most, and every answer is the reference's."""
     bank, lib, ref, rng = synthetic_library
-    assert lib.n_components > incremental.PRUNE_MIN_COMPONENTS
+    assert lib.n_components > recognition.PRUNE_MIN_COMPONENTS
     n_scored = []
     for human in _probes(bank, rng, n=10):
         _, prefix = _reference_answers(lib, ref, human)
@@ -168,7 +168,7 @@ def test_pruned_prefix_recognition_answers_as_brute_force_and_scores_few_compone
 @pytest.mark.parametrize("prune", [False, True])
 def test_recognize_answers_as_the_reference_on_letters_with_undecided_answers(letters, prune, monkeypatch):
     """Letters: big fit residuals and close skills; with the pruning forced on, still the reference's answers."""
-    monkeypatch.setattr(incremental, "PRUNE_MIN_COMPONENTS", 0 if prune else 10 ** 9)
+    monkeypatch.setattr(recognition, "PRUNE_MIN_COMPONENTS", 0 if prune else 10 ** 9)
     demos, ws = letters
     rng = np.random.default_rng(4)
     order = rng.permutation(len(demos))
@@ -204,7 +204,7 @@ def _prefix_problem(lib, human):
     cfg, comps = lib.config, lib._components
     path = lib._normalized(human, None, False)
     guess = path.length / np.maximum(comps.path_length, 1e-12)
-    ys = path.resample(incremental._prefix_samples(cfg.n_samples, float(np.median(np.minimum(guess, 1.0)))))
+    ys = path.resample(recognition._prefix_samples(cfg.n_samples, float(np.median(np.minimum(guess, 1.0)))))
     return ys, phase_band(guess)
 
 
@@ -228,7 +228,7 @@ def test_the_pruning_bound_lies_below_the_exact_fit_statistic_of_every_component
     metric = lib._metric()
     inflate = 1.0 + 1.0 / comps.support
     sigma_max = float(np.linalg.eigvalsh(metric.cov)[-1])
-    threshold = incremental.chi2_ppf(cfg.novelty_quantile, lib.n_human)
+    threshold = recognition.chi2_ppf(cfg.novelty_quantile, lib.n_human)
     pruned = []
     grid = np.array(PHASE_GRID)
     noise = lib.observation_noise()
