@@ -5,7 +5,7 @@ import argparse
 import json
 import math
 import time
-from dataclasses import replace
+from dataclasses import asdict, replace
 
 from drake_skills.commands import add_common, add_config
 
@@ -25,6 +25,16 @@ def register(sub) -> None:
                    help="1-based index of the simulated subject (default: the config's, 1)")
     add_config(p)
     p.add_argument("--quick", action="store_true", help="a short run: 8 trials from 4 demonstrations per task")
+    p.add_argument("--transport", choices=("direct", "lcm"), default="direct",
+                   help="direct: controller and plant wired in one Diagram (default); lcm: the controller Diagram "
+                        "and a simulated station talk only over LCM (iiwa driver messages and a wrist message)")
+    p.add_argument("--lcm-url", default=None, metavar="URL",
+                   help="LCM bus of --transport lcm (default: the config's lcm.url, memq://, an in-process queue); "
+                        "e.g. udpm://239.255.76.67:7667?ttl=0 for a real bus that stays on this host")
+    p.add_argument("--lcm-latency", type=float, default=None, metavar="S",
+                   help="--transport lcm: seconds of latency added to every message by the simulated bus")
+    p.add_argument("--lcm-wrist-drop", type=float, default=None, metavar="F",
+                   help="--transport lcm: fraction of wrist messages the simulated bus drops (seeded)")
     p.add_argument("--meshcat", action="store_true",
                    help="serve the recording live on localhost instead of writing demo.html "
                         "(prints the URL, serves until Ctrl-C)")
@@ -62,13 +72,23 @@ def run(args: argparse.Namespace) -> int:
     if args.trials is not None:
         overrides["trials"] = args.trials
     cfg = replace(cfg, **{k: v for k, v in overrides.items() if v is not None})  # validated again
+    lcm_overrides = {"url": args.lcm_url, "latency": args.lcm_latency, "wrist_drop": args.lcm_wrist_drop}
+    if args.transport != "lcm" and any(v is not None for v in lcm_overrides.values()):
+        raise ValueError("--lcm-url, --lcm-latency and --lcm-wrist-drop need --transport lcm")
+    cfg = replace(cfg, lcm=replace(cfg.lcm, **{k: v for k, v in lcm_overrides.items() if v is not None}))
+    make_sim = None
+    if args.transport == "lcm":
+        from drake_skills.sim.lcm_demo import LcmCollaborationSim
+
+        make_sim = LcmCollaborationSim
     args.out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     data = generate_subject(cfg.subject, n_demos=cfg.demos_per_task, seed=cfg.seed)
     workspace = data.workspace(z_factor=cfg.z_factor)
     t_gen = time.perf_counter() - t0
     print(f"subject {cfg.subject}: {len(data.demos)} demonstrations generated in {t_gen:.1f} s; "
-          f"{cfg.trials} trials against an empty library")
+          f"{cfg.trials} trials against an empty library"
+          + (f"; controller and station over LCM ({cfg.lcm.url})" if make_sim is not None else ""))
     meshcat = make_meshcat()
     print(f"{'trial':>5s}  {'task':9s}  {'decision':34s}  {'result':6s}  {'commit':>6s}  {'lead s':>6s}  "
           f"{'flange cm':>9s}")
@@ -81,7 +101,8 @@ def run(args: argparse.Namespace) -> int:
         print(_row(result), flush=True)
         plot_trial(result, outcome, plots / f"trial_{result.trial:02d}.png")
 
-    summary, library = run_collaboration(cfg, data.demos, workspace, meshcat=meshcat, on_trial=on_trial)
+    summary, library = run_collaboration(cfg, data.demos, workspace, meshcat=meshcat, on_trial=on_trial,
+                                         make_sim=make_sim)
     summary.wall_seconds = time.perf_counter() - t0
     acc = summary.accuracy_after_teaching
     print(f"{summary.trials} trials: right {summary.right}, WRONG skill executed {summary.wrong}, asked "
@@ -98,7 +119,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"simulated {summary.simulated_seconds:.1f} s in {summary.wall_seconds:.1f} s wall time")
     library.save(args.out / "library.npz")
     (args.out / "summary.json").write_text(json.dumps(
-        {"subject": cfg.subject, "seed": cfg.seed, **summary.dict()}, indent=2))
+        {"subject": cfg.subject, "seed": cfg.seed, "transport": args.transport,
+         **({"lcm": asdict(cfg.lcm)} if make_sim is not None else {}), **summary.dict()}, indent=2))
     if args.meshcat:
         print(f"meshcat: open {meshcat.web_url()} to replay the run; Ctrl-C to stop")
         try:

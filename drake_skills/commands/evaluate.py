@@ -1,4 +1,4 @@
-"""``drake-skills eval letters|salad|sensitivity|interaction``: the experiments, written as tables and plots."""
+"""``drake-skills eval letters|salad|sensitivity|interaction|scale``: the experiments, written as tables and plots."""
 from __future__ import annotations
 
 import argparse
@@ -74,6 +74,20 @@ def register(sub) -> None:
     add_config(q)
     q.set_defaults(func=run_interaction)
 
+    q = esub.add_parser("scale", help="many skills in one library: LASA-30, and synthetic skills from 10 to 1000",
+                        description="LASA-30 in one library (4 demonstrations per shape taught in random order, "
+                                    "the other 3 recognized) and synthetic skills at K = 10 ... 1000 (interleaved "
+                                    "and in a row): components found, correct / wrong / undecided / unknown, ms per "
+                                    "update and per recognition. Runs in one process (the timings compare).")
+    add_common(q, "eval/scale")
+    q.add_argument("--quick", action="store_true", help="reduced run (what the tests use)")
+    q.add_argument("--orders", type=int, default=None, help="random orders of LASA-30 (default 3, --quick: 1)")
+    q.add_argument("--sizes", type=int, nargs="+", default=None, metavar="K",
+                   help="numbers of synthetic skills (default 10 30 100 300 1000, --quick: 10 30)")
+    q.add_argument("--no-progress", action="store_true", help="no progress bars")
+    add_config(q)
+    q.set_defaults(func=run_scale)
+
 
 def run_interaction(args: argparse.Namespace) -> int:
     from drake_skills.evaluation.common import use_agg
@@ -137,6 +151,20 @@ def run_salad(args: argparse.Namespace) -> int:
                 **{k: v for k, v in overrides.items() if v is not None})  # validated again
     rep = evaluate_salad(s, workers=args.workers, progress=not args.no_progress, cache_dir=args.out / "cache")
     rep.summary["command"] = " ".join(["drake-skills", "eval", "salad"] + sys.argv[3:])
+    return _finish(rep, args.out, t0)
+
+
+def run_scale(args: argparse.Namespace) -> int:
+    from drake_skills.evaluation.common import use_agg
+    from drake_skills.evaluation.scale import ScaleSettings, evaluate_scale
+
+    use_agg()
+    t0 = time.time()
+    base = ScaleSettings.quick(seed=args.seed) if args.quick else ScaleSettings(seed=args.seed)
+    overrides = {"lasa_orders": args.orders, "sizes": tuple(args.sizes) if args.sizes else None}
+    s = replace(base, library=_library(args), **{k: v for k, v in overrides.items() if v is not None})
+    rep = evaluate_scale(s, progress=not args.no_progress)
+    rep.summary["command"] = " ".join(["drake-skills", "eval", "scale"] + sys.argv[3:])
     return _finish(rep, args.out, t0)
 
 

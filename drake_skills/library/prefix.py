@@ -33,9 +33,9 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy.special import logsumexp
 
 from drake_skills.promp.basis import GaussianBasis
+from drake_skills.promp.gaussian import logsumexp
 
 _LOG_2PI = np.log(2.0 * np.pi)
 #: Phases tried: 1/20 ... 1 in steps of 1/20.
@@ -44,18 +44,19 @@ PHASE_GRID = tuple(np.round(np.arange(1, 21) / 20.0, 6))
 PHASE_BAND = 1.5
 
 
-@lru_cache(maxsize=512)
-def _basis_terms(basis: GaussianBasis, phases: tuple, m: int):
-    """For each phase f: Phi over ``m`` evenly spaced phases of ``[0, f]``, its Gram matrix and pseudo-inverse.
-
-    Returns arrays of shapes (J, m, N), (J, N, N), (J, N, N) (read-only, cached).
-    """
-    Phi = np.stack([basis.phi(np.linspace(0.0, f, m)) for f in phases])
-    PtP = np.einsum("jtn,jtk->jnk", Phi, Phi)
-    Pinv = np.stack([np.linalg.pinv(P, rcond=1e-10, hermitian=True) for P in PtP])
-    for a in (Phi, PtP, Pinv):
-        a.setflags(write=False)
+@lru_cache(maxsize=2048)
+def _basis_at(basis: GaussianBasis, f: float, m: int):
+    """Phi over ``m`` evenly spaced phases of ``[0, f]`` (m, N), its Gram matrix and pseudo-inverse (cached)."""
+    Phi = basis.phi(np.linspace(0.0, f, m))
+    PtP = Phi.T @ Phi
+    Pinv = np.linalg.pinv(PtP, rcond=1e-10, hermitian=True)
     return Phi, PtP, Pinv
+
+
+def _basis_terms(basis: GaussianBasis, phases: tuple, m: int):
+    """:func:`_basis_at` for each phase, stacked: arrays of shapes (J, m, N), (J, N, N), (J, N, N)."""
+    parts = [_basis_at(basis, f, m) for f in phases]
+    return tuple(np.stack([p[i] for p in parts]) for i in range(3))
 
 
 def _whitened_gram(PtP: np.ndarray, chol: np.ndarray, D: int):
@@ -107,13 +108,16 @@ def score_phases(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarray
     m, D = y.shape
     phases = tuple(float(f) for f in phases)
     Phi, PtP, Pinv = _basis_terms(basis, phases, int(m))
-    key = (phases, int(m))
-    if cache is not None and key in cache:
-        lam, Q = cache[key]
-    else:
+    if cache is None:
         lam, Q = _whitened_gram(PtP, chol, D)
-        if cache is not None:
-            cache[key] = (lam, Q)
+    else:  # one entry per (phase, m): the phase sets asked for vary, the phases themselves recur
+        missing = [j for j, f in enumerate(phases) if (f, int(m)) not in cache]
+        if missing:
+            lam_m, Q_m = _whitened_gram(PtP[missing], chol, D)
+            for i, j in enumerate(missing):
+                cache[(phases[j], int(m))] = (lam_m[i], Q_m[i])
+        lam = np.stack([cache[(f, int(m))][0] for f in phases])
+        Q = np.stack([cache[(f, int(m))][1] for f in phases])
     J, _, N = Phi.shape
     K = means_h.shape[0]
     Mt = means_h.reshape(K, D, N).transpose(0, 2, 1)       # (K, N, D)
@@ -141,7 +145,8 @@ def score_at_phase(y, f: float, means_h, inflate, chol, basis: GaussianBasis, no
 
 
 def score_prefix(y: np.ndarray, guess: np.ndarray, means_h: np.ndarray, inflate: np.ndarray, chol: np.ndarray,
-                 basis: GaussianBasis, noise_var: float, cache: dict | None = None) -> PrefixScores:
+                 basis: GaussianBasis, noise_var: float, cache: dict | None = None,
+                 band: np.ndarray | None = None) -> PrefixScores:
     """Each component scored at its most likely phase of :data:`PHASE_GRID` near its path-length guess.
 
     Parameters
@@ -149,14 +154,13 @@ def score_prefix(y: np.ndarray, guess: np.ndarray, means_h: np.ndarray, inflate:
     y : array, shape (m, D)
     guess : array, shape (K,)
         Observed path length over each component's mean path length.
+    band : array of bool, shape (K, len(PHASE_GRID)), optional
+        :func:`phase_band` of ``guess`` (computed if not given).
     (the rest as :func:`score_phases`)
     """
     K = means_h.shape[0]
     grid = np.array(PHASE_GRID)
-    g = np.clip(np.asarray(guess, float), grid[0], 1.0)
-    lo, hi = g / PHASE_BAND, np.minimum(g * PHASE_BAND, 1.0)
-    wanted = (grid[None, :] >= lo[:, None] - 1e-12) & (grid[None, :] <= hi[:, None] + 1e-12)
-    wanted[np.arange(K), np.abs(grid[None, :] - g[:, None]).argmin(axis=1)] = True
+    wanted = phase_band(guess) if band is None else band
     cols = np.flatnonzero(wanted.any(axis=0))
     ll, d2, dof = score_phases(y, tuple(grid[cols]), means_h, inflate, chol, basis, noise_var, cache)
     mask = wanted[:, cols].T                                  # (J', K)
@@ -167,3 +171,14 @@ def score_prefix(y: np.ndarray, guess: np.ndarray, means_h: np.ndarray, inflate:
     # allows (uniform), not the best of them, which would favour the components that allow many
     marginal = logsumexp(masked, axis=0) - np.log(mask.sum(axis=0))
     return PrefixScores(marginal, d2[best, k], dof[best, k], grid[cols][best])
+
+
+def phase_band(guess) -> np.ndarray:
+    """Which phases of :data:`PHASE_GRID` each component's band allows: a mask, shape (K, len(PHASE_GRID))."""
+    grid = np.array(PHASE_GRID)
+    g = np.clip(np.asarray(guess, float), grid[0], 1.0)
+    lo, hi = g / PHASE_BAND, np.minimum(g * PHASE_BAND, 1.0)
+    wanted = (grid[None, :] >= lo[:, None] - 1e-12) & (grid[None, :] <= hi[:, None] + 1e-12)
+    wanted[np.arange(g.size), np.abs(grid[None, :] - g[:, None]).argmin(axis=1)] = True
+    return wanted
+

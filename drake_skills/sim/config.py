@@ -6,6 +6,7 @@
       library: LibraryConfig   the skill library (drake_skills.library.config)
       decision: DecisionRule   when the gating decides (drake_skills.systems.decision_rule)
       controller, meshcat      gains and drawing
+      lcm: LcmConfig           channels, rates and the simulated bus (drake_skills.sim.lcm_config)
 
 Every node is a dataclass that is its own schema (a comment on every field) and
 validates itself in ``__post_init__``. :func:`load_config` reads a file in either of
@@ -22,6 +23,7 @@ from pydrake.common.yaml import yaml_load, yaml_load_typed
 
 from drake_skills._checks import validated
 from drake_skills.library.config import LibraryConfig
+from drake_skills.sim.lcm_config import LcmConfig
 from drake_skills.systems.decision_rule import DecisionRule
 
 
@@ -87,10 +89,12 @@ class SimConfig:
     demos_per_task: int = 15
     # shrink factor of the calibrated workspace along z (Sec. 4.2.2)
     z_factor: float = 0.9
+    # the LCM interface (drake-skills demo --transport lcm, drake-skills control)
+    lcm: LcmConfig = field(default_factory=LcmConfig)
 
     def __post_init__(self):
         for name, kind in (("library", LibraryConfig), ("decision", DecisionRule), ("controller", ControllerConfig),
-                           ("meshcat", MeshcatConfig)):
+                           ("meshcat", MeshcatConfig), ("lcm", LcmConfig)):
             if not isinstance(getattr(self, name), kind):
                 raise ValueError(f"SimConfig.{name} must be a {kind.__name__}, "
                                  f"got {type(getattr(self, name)).__name__}")

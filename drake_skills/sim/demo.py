@@ -16,6 +16,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import Diagram
 
 from drake_skills.data.demonstration import Demonstration
 from drake_skills.library.incremental import SkillLibrary
@@ -215,7 +216,7 @@ class CollaborationSim:
         self.config = config
         self.library = library
         self.workspace = workspace
-        self.diagram, self.handles = build_diagram(config, library=library, workspace=workspace, meshcat=meshcat)
+        self.diagram, self.handles = self._build(meshcat)
         self.simulator = Simulator(self.diagram)
         self.context = self.simulator.get_mutable_context()
         h: DiagramHandles = self.handles
@@ -224,6 +225,18 @@ class CollaborationSim:
         self._fk_flange = h.controller_plant.GetFrameByName(FLANGE_FRAME)
         self._votes = TaskVotes()
         self.time = 0.0
+
+    def _build(self, meshcat: Meshcat | None) -> tuple[Diagram, DiagramHandles]:
+        """The Diagram and its handles (the LCM transport overrides this)."""
+        return build_diagram(self.config, library=self.library, workspace=self.workspace, meshcat=meshcat)
+
+    def _start_trial(self, demo: Demonstration, t0: float) -> None:
+        """Reset the whole Diagram to a new trial of ``demo`` at time ``t0`` and initialize."""
+        h, ctx = self.handles, self.context
+        self.diagram.SetDefaultContext(ctx)
+        ctx.SetTime(t0)
+        h.wrist_source.SetTrial(h.wrist_source.GetMyContextFromRoot(ctx), WristTrial(demo.t, demo.human, t0))
+        self.simulator.Initialize()
 
     # ------------------------------------------------------------ helpers
     def flange_position(self, q: np.ndarray) -> np.ndarray:
@@ -257,10 +270,7 @@ class CollaborationSim:
         h = self.handles
         ctx = self.context
         t0 = math.ceil(self.time / TRIAL_GRID) * TRIAL_GRID
-        self.diagram.SetDefaultContext(ctx)
-        ctx.SetTime(t0)
-        h.wrist_source.SetTrial(h.wrist_source.GetMyContextFromRoot(ctx), WristTrial(demo.t, demo.human, t0))
-        self.simulator.Initialize()
+        self._start_trial(demo, t0)
         status_port = h.trial_monitor.GetOutputPort("trial_status")
         monitor_ctx = h.trial_monitor.GetMyContextFromRoot(ctx)
         source_port = h.trajectory_source.GetOutputPort("desired_state")
@@ -364,7 +374,7 @@ def trial_stream(demos: list[Demonstration], n_trials: int, rng: np.random.Gener
 
 def run_collaboration(config: SimConfig, demos: list[Demonstration], workspace: Workspace, *,
                       library: SkillLibrary | None = None, meshcat: Meshcat | None = None,
-                      on_trial=None) -> tuple[DemoSummary, SkillLibrary]:
+                      on_trial=None, make_sim=None) -> tuple[DemoSummary, SkillLibrary]:
     """Run the stream of trials of the paper's Fig. 2 against an (initially empty) library.
 
     Parameters
@@ -381,6 +391,10 @@ def run_collaboration(config: SimConfig, demos: list[Demonstration], workspace: 
     on_trial : callable, optional
         Called with each :class:`TrialResult` and its :class:`TrialOutcome` as it is done
         (progress output, plots).
+    make_sim : callable, optional
+        ``make_sim(config, library, workspace, meshcat)`` -> a :class:`CollaborationSim`;
+        default the class itself (the direct Diagram), e.g.
+        :class:`~drake_skills.sim.lcm_demo.LcmCollaborationSim` for the LCM transport.
 
     Returns
     -------
@@ -392,7 +406,7 @@ def run_collaboration(config: SimConfig, demos: list[Demonstration], workspace: 
     library = library if library is not None else SkillLibrary(config.library)
     rng = np.random.default_rng(config.seed)
     stream = trial_stream(demos, config.trials, rng)
-    sim = CollaborationSim(config, library, workspace, meshcat)
+    sim = (make_sim or CollaborationSim)(config, library, workspace, meshcat)
     if meshcat is not None:
         meshcat.StartRecording(config.meshcat.frames_per_second, False)
     taught_tasks: set[str] = set()
