@@ -53,3 +53,13 @@ def grow_forever(path: str, n_max: int, started) -> None:
     for k in range(lib.n_seen, n_max):
         lib.partial_fit(stream_demo(k))
         lib.save(path)
+
+
+def learn_cli(argv: list, barrier) -> None:
+    """``drake-skills learn ARGV`` in this process, after ``barrier``; its exit code is the process's."""
+    import sys
+
+    from drake_skills.cli import main
+
+    barrier.wait()
+    sys.exit(main(argv))

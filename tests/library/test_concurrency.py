@@ -223,3 +223,63 @@ def test_a_writer_killed_at_random_moments_never_leaves_a_corrupt_file(tmp_path,
     print(f"{KILLS} kills: {loads} loads, every one a saved version ({len(seen)} distinct, up to "
           f"{max(seen, default=0)} demonstrations); {interrupted} kills landed mid-save")
     assert loads >= KILLS - 5 and len(seen) >= 10
+
+
+def _demo_folder(folder: Path, demos) -> Path:
+    from drake_skills.data.demos import save_npz
+
+    folder.mkdir(parents=True)
+    for i, d in enumerate(demos):
+        save_npz(d, folder / f"demo_{i:02d}.npz")
+    return folder
+
+
+def test_four_concurrent_learn_commands_extending_one_library_lose_no_demonstration(tmp_path, ctx):
+    """Four `drake-skills learn DIR --library shared/library.npz --out shared` at once: 2 + 4 x 5 demonstrations."""
+    cfg = tmp_path / "one_per_demo.yaml"
+    cfg.write_text("".join(f"{k}: {v}\n" for k, v in writers.ONE_COMPONENT_PER_DEMO.items()))
+    demos = _demos(22, 11, noise=5.0)
+    shared = tmp_path / "shared"
+    from drake_skills.cli import main
+
+    assert main(["learn", str(_demo_folder(tmp_path / "first", demos[:2])), "--out", str(shared),
+                 "--config", str(cfg)]) == 0
+    lib_file = shared / "library.npz"
+    argvs = [["learn", str(_demo_folder(tmp_path / f"w{i}", demos[2 + 5 * i:7 + 5 * i])), "--library",
+              str(lib_file), "--out", str(shared), "--in-order"] for i in range(4)]
+    barrier = ctx.Barrier(4)
+    procs = [ctx.Process(target=writers.learn_cli, args=(argv, barrier)) for argv in argvs]
+    for pr in procs:
+        pr.start()
+    for pr in procs:
+        pr.join(120)
+    assert [pr.exitcode for pr in procs] == [0, 0, 0, 0]
+    lib = SkillLibrary.load(lib_file)
+    assert lib.n_seen == 22 and lib.generation == 5 and lib.state().scale.n == 22
+    means = np.stack([c.mean for c in lib.components])
+    for d in demos:  # each demonstration is the mean of a component of its own
+        assert np.abs(means - lib.encode(d)).max(axis=1).min() < 1e-9 * (1 + np.abs(means).max())
+
+
+def test_learn_refuses_to_replace_a_file_that_is_not_the_library_it_extends_unless_forced(tmp_path, capsys):
+    from drake_skills.cli import main
+
+    folder = _demo_folder(tmp_path / "demos", _demos(4, 12))
+    out = tmp_path / "out"
+    assert main(["learn", str(folder), "--out", str(out)]) == 0
+    before = (out / "library.npz").read_bytes()
+    capsys.readouterr()
+    assert main(["learn", str(folder), "--out", str(out)]) == 1  # a second learn from scratch: refused
+    err = capsys.readouterr().err
+    assert "library.npz' exists and is not the --library being extended" in err and "--force" in err, err
+    assert (out / "library.npz").read_bytes() == before
+    foreign = tmp_path / "foreign"
+    foreign.mkdir()
+    (foreign / "library.npz").write_bytes(b"not a library")  # a corrupt or foreign file is not replaced either
+    assert main(["learn", str(folder), "--out", str(foreign)]) == 1
+    assert (foreign / "library.npz").read_bytes() == b"not a library"
+    # extending it in place, and --force, are what the message offers
+    assert main(["learn", str(folder), "--library", str(out / "library.npz"), "--out", str(out)]) == 0
+    assert SkillLibrary.load(out / "library.npz").n_seen == 8
+    assert main(["learn", str(folder), "--out", str(foreign), "--force"]) == 0
+    assert SkillLibrary.load(foreign / "library.npz").n_seen == 4
