@@ -17,6 +17,11 @@ file). :func:`invariant_violations` lists them:
   finite with non-negative variances;
 * the shared covariance (stacked and gating block) is symmetric positive definite.
 
+Scatters are compared through what they do to a few fixed random probe vectors
+(``S V`` with ``V`` (d, 4), from the factors: ``F (F^T V)``), which finds any
+difference of the matrices but a set of measure zero, at O(d r) per cluster instead
+of O(d^2 r): a 1000-component library is checked in milliseconds.
+
 Relative differences are measured against the size of the terms compared
 (``|a - b| <= rtol (|a| + |b|) + atol``), with ``atol`` a tiny multiple of the
 weights' overall variance so that sums that cancel to zero compare sanely.
@@ -32,11 +37,23 @@ from drake_skills.library.state import LibraryState
 RTOL = 1e-9
 
 
+#: Number of random probe vectors the scatters are compared through.
+N_PROBES = 4
+
+
+def _probes(d: int) -> np.ndarray:
+    return np.random.default_rng(12345).standard_normal((d, N_PROBES))
+
+
 def _close(a, b, rtol: float, atol: float) -> tuple[bool, float]:
     a, b = np.asarray(a, float), np.asarray(b, float)
     scale = float(np.linalg.norm(a) + np.linalg.norm(b))
     err = float(np.linalg.norm(a - b))
     return err <= rtol * scale + atol, err / max(scale, 1e-300)
+
+
+def _asymmetry(A: np.ndarray) -> float:
+    return float(np.abs(A - A.T).max(initial=0.0))
 
 
 def _cluster_ok(cl: Cluster, d: int, what: str, out: list) -> bool:
@@ -85,13 +102,15 @@ def invariant_violations(state: LibraryState, *, rtol: float = RTOL, check_covar
         return out
     if (sc.total_m2 < -atol).any():
         out.append("the shared scale has a negative variance")
-    pooled = np.zeros((d, d))
+    V = _probes(d)
+    pooled = np.zeros((d, N_PROBES))  # (sum_k S_k) V
     dof = 0.0
     for c in state.components:
         what = f"component {c.id}"
         if not _cluster_ok(c.cluster, d, what, out):
             continue
-        S = c.cluster.scatter
+        F = c.cluster.factor
+        S = F @ (F.T @ V)
         pooled += S
         dof += c.cluster.support - 1.0
         a, b = c.subclusters
@@ -99,7 +118,7 @@ def invariant_violations(state: LibraryState, *, rtol: float = RTOL, check_covar
             continue
         if b is None:
             parts = [(a.support, c.cluster.support, "support"), (a.mean, c.cluster.mean, "mean"),
-                     (a.scatter, S, "scatter")]
+                     (a.factor @ (a.factor.T @ V), S, "scatter")]
         else:
             if not _cluster_ok(b, d, f"sub-cluster 1 of {what}", out):
                 continue
@@ -107,25 +126,26 @@ def invariant_violations(state: LibraryState, *, rtol: float = RTOL, check_covar
             g = np.sqrt(a.support * b.support / s) * (a.mean - b.mean)
             parts = [(s, c.cluster.support, "support"),
                      ((a.support * a.mean + b.support * b.mean) / s, c.cluster.mean, "mean"),
-                     (a.scatter + b.scatter + np.outer(g, g), S, "scatter")]
+                     (a.factor @ (a.factor.T @ V) + b.factor @ (b.factor.T @ V) + np.outer(g, g @ V), S,
+                      "scatter")]
         for x, y, name in parts:
             scale_atol = atol if name == "scatter" else 1e-12 * (1.0 + float(np.abs(y).max(initial=0.0)))
             ok, rel = _close(x, y, rtol, scale_atol)
             if not ok:
                 out.append(f"{what}: its sub-clusters' {name} differs from its own by {rel:.2e} (relative)")
-    ok, rel = _close(sc.pooled, pooled, rtol, atol * max(1, len(state.components)))
+    ok, rel = _close(sc.pooled @ V, pooled, rtol, atol * max(1, len(state.components)))
     if not ok:
         out.append(f"the pooled scatter differs from the sum of the components' scatters by {rel:.2e} (relative)")
     if abs(sc.dof - dof) > rtol * (abs(sc.dof) + abs(dof)) + 1e-9 * max(1, len(state.components)):
         out.append(f"the pooled degrees of freedom {sc.dof:.9g} differ from the components' sum(s_k - 1) {dof:.9g}")
-    if not np.allclose(sc.pooled, sc.pooled.T, rtol=1e-12, atol=atol):
+    if _asymmetry(sc.pooled) > 1e-12 * float(np.abs(sc.pooled).max(initial=0.0)) + atol:
         out.append("the pooled scatter is not symmetric")
     if check_covariance and not out:
         cfg = state.config
         S = shared_covariance(sc, h, prior_scale=cfg.prior_scale, prior_strength=cfg.prior_strength,
                               shrinkage=cfg.shrinkage, prior_floor=cfg.prior_floor)
         for block, name in ((S, "stacked"), (S[:h, :h], "gating")):
-            if not np.allclose(block, block.T, rtol=0, atol=1e-12 * float(np.abs(block).max(initial=1.0))):
+            if _asymmetry(block) > 1e-12 * float(np.abs(block).max(initial=1.0)):
                 out.append(f"the shared {name} covariance is not symmetric")
             try:
                 np.linalg.cholesky(block)
