@@ -91,7 +91,9 @@ class GatingDecision(Shared):
         The motion is over (or timed out) and the last answer is given.
     status : str
         "pending" while observing with nothing committed, "skill" while a skill is
-        committed, and at the end the final answer: "skill", "undecided" or "unknown".
+        committed, and at the end the final answer: "skill", "undecided" or "unknown";
+        "lost" when no acceptable wrist sample came for longer than the rule's
+        ``lost_timeout`` (also after a final answer): the robot holds.
     time : float
         Simulation time the current ``component`` was set (commit or revision) or, when
         final without a skill, of the final answer (NaN before).
@@ -109,6 +111,11 @@ class GatingDecision(Shared):
         Time of the last re-decision (NaN before).
     streak : tuple (answer, count)
         The last answer (a component id, "unknown" or "undecided") and how often in a row.
+    last_sample : float
+        Time of the last acceptable (finite) wrist sample, or of the trial's first update
+        before any (NaN before the first update).
+    rejected : int
+        Samples skipped because they were not acceptable (NaN from the normalizer's screen).
     """
 
     motion: ObservedMotion = field(default_factory=ObservedMotion)
@@ -123,6 +130,8 @@ class GatingDecision(Shared):
     responsibilities: dict = field(default_factory=dict)
     last_check: float = float("nan")
     streak: tuple = (None, 0)
+    last_sample: float = float("nan")
+    rejected: int = 0
 
     @property
     def decided(self) -> bool:
@@ -228,10 +237,21 @@ def gating_step(state: GatingDecision, time: float, sample: np.ndarray, library:
     (``observed_fraction=1``, the test learning uses) and that answer is final: a
     skill is executed, "unknown" or "undecided" makes the robot hold.
     """
-    if state.final:
-        return state
-    motion = state.motion.append(time, sample)
     t = float(time)
+    sample = np.asarray(sample, float)
+    if not np.isfinite(sample).all():  # rejected by the normalizer's screen: bridge the gap, or give up
+        last = t if np.isnan(state.last_sample) else state.last_sample
+        if state.status == "lost":
+            return state
+        if t - last > rule.lost_timeout + 1e-9:
+            log.debug("gating: wrist lost at t=%.3f (no acceptable sample since %.3f)", t, last)
+            return replace(state, component=None, final=True, status="lost", time=t, last_sample=last,
+                           rejected=state.rejected + 1, revisions=state.revisions + (state.component is not None))
+        return replace(state, last_sample=last, rejected=state.rejected + 1)
+    if state.final:  # the answer is given; the wrist is still watched (a lost wrist makes the robot hold)
+        return replace(state, last_sample=t)
+    state = replace(state, last_sample=t)
+    motion = state.motion.append(time, sample)
     if should_decide(motion, rule):
         rec = recognize_motion(library, motion, whole=True)
         b = _belief(t, rec)
@@ -327,7 +347,7 @@ class SkillGating(LeafSystem):
 
     def _update(self, context: Context, state: State) -> None:
         old = self.decision(context)
-        if old.final:
+        if old.status == "lost":
             return
         new = gating_step(old, context.get_time(), self._wrist.Eval(context), self._library, self._rule)
         state.get_mutable_abstract_state(self._state).set_value(new)
