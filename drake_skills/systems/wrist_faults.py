@@ -28,6 +28,23 @@ import numpy as np
 FAULT_KINDS = ("dropout", "stale", "nan", "outlier", "latency")
 
 
+#: The rates ``drake-skills demo --faults KIND,...`` sets for each kind.
+PRESETS = {"dropout": {"dropout_rate": 0.5}, "stale": {"stale_rate": 0.5}, "nan": {"nan_rate": 2.0},
+           "outlier": {"outlier_rate": 2.0}, "latency": {"latency": 0.05}}
+
+
+def faults_from_spec(spec: str) -> "TrackerFaults":
+    """``"nan,outlier"`` (or ``"all"``) as TrackerFaults at the :data:`PRESETS` rates."""
+    kinds = FAULT_KINDS if spec.strip() == "all" else [k.strip() for k in spec.split(",") if k.strip()]
+    bad = sorted(set(kinds) - set(FAULT_KINDS))
+    if bad or not kinds:
+        raise ValueError(f"--faults takes a comma-separated list of {', '.join(FAULT_KINDS)} (or all), got {spec!r}")
+    fields = {}
+    for k in kinds:
+        fields.update(PRESETS[k])
+    return TrackerFaults(**fields)
+
+
 @dataclass
 class TrackerFaults:
     """How often the simulated wrist tracker misbehaves (all zero: a perfect tracker)."""
