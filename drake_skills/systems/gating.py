@@ -111,9 +111,9 @@ class GatingDecision(Shared):
         Time of the last re-decision (NaN before).
     streak : tuple (answer, count)
         The last answer (a component id, "unknown" or "undecided") and how often in a row.
-    last_sample : float
-        Time of the last acceptable (finite) wrist sample, or of the trial's first update
-        before any (NaN before the first update).
+    gap_start : float
+        Time of the first of the samples rejected in a row since the last acceptable
+        (finite) one (NaN when the last sample was acceptable).
     rejected : int
         Samples skipped because they were not acceptable (NaN from the normalizer's screen).
     """
@@ -130,7 +130,7 @@ class GatingDecision(Shared):
     responsibilities: dict = field(default_factory=dict)
     last_check: float = float("nan")
     streak: tuple = (None, 0)
-    last_sample: float = float("nan")
+    gap_start: float = float("nan")
     rejected: int = 0
 
     @property
@@ -240,17 +240,18 @@ def gating_step(state: GatingDecision, time: float, sample: np.ndarray, library:
     t = float(time)
     sample = np.asarray(sample, float)
     if not np.isfinite(sample).all():  # rejected by the normalizer's screen: bridge the gap, or give up
-        last = t if np.isnan(state.last_sample) else state.last_sample
         if state.status == "lost":
             return state
-        if t - last > rule.lost_timeout + 1e-9:
-            log.debug("gating: wrist lost at t=%.3f (no acceptable sample since %.3f)", t, last)
-            return replace(state, component=None, final=True, status="lost", time=t, last_sample=last,
+        gap = t if np.isnan(state.gap_start) else state.gap_start
+        if t - gap > rule.lost_timeout + 1e-9:
+            log.debug("gating: wrist lost at t=%.3f (no acceptable sample since %.3f)", t, gap)
+            return replace(state, component=None, final=True, status="lost", time=t, gap_start=gap,
                            rejected=state.rejected + 1, revisions=state.revisions + (state.component is not None))
-        return replace(state, last_sample=last, rejected=state.rejected + 1)
+        return replace(state, gap_start=gap, rejected=state.rejected + 1)
+    if not np.isnan(state.gap_start):
+        state = replace(state, gap_start=float("nan"))  # the gap is bridged
     if state.final:  # the answer is given; the wrist is still watched (a lost wrist makes the robot hold)
-        return replace(state, last_sample=t)
-    state = replace(state, last_sample=t)
+        return state
     motion = state.motion.append(time, sample)
     if should_decide(motion, rule):
         rec = recognize_motion(library, motion, whole=True)

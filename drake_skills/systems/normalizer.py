@@ -58,14 +58,16 @@ def screen_sample(p: np.ndarray, stamp: float, last_good: np.ndarray | None, las
         Its stamp.
     last_seen_stamp : float or None
         Stamp of the last sample seen, accepted or not (None: none yet).
-    rule : SampleRule
+    rule : SampleRule or None
+        None: no speed bound (positions not in metres); NaN and stale samples are
+        still rejected.
     """
     p = np.asarray(p, float)
     if not np.isfinite(p).all() or not np.isfinite(stamp):
         return "nan"
     if last_seen_stamp is not None and stamp <= last_seen_stamp:
         return "stale"
-    if last_good is not None:
+    if last_good is not None and rule is not None:
         bound = min(rule.max_speed * max(stamp - last_good_stamp, 0.0), rule.max_jump) + rule.tolerance
         if float(np.linalg.norm(p - last_good)) > bound:
             return "outlier"
@@ -125,8 +127,10 @@ class WorkspaceNormalizer(LeafSystem):
     subtract_start : bool
         Subtract the start position (the library's ``config.subtract_start``).
     rule : SampleRule, optional
-        Which samples are accepted (see the module docstring); a rejected one is
-        output as NaN. The screening state advances every 1/64 s (the gating's period).
+        The speed bound of the screen (see the module docstring), for a wrist in
+        metres (the controller passes ``SimConfig.wrist``); None: NaN and stale
+        samples only. A rejected sample is output as NaN. The screening state
+        advances every 1/64 s (the gating's period).
     timestamped : bool
         Read the measurement time of each sample from ``wrist_time`` (1,), s; without
         it every sample counts as new (no stale detection).
@@ -139,9 +143,9 @@ class WorkspaceNormalizer(LeafSystem):
             raise ValueError(f"workspace must be a Workspace, got {type(workspace).__name__}")
         self._workspace = workspace
         self._subtract_start = bool(subtract_start)
-        self._rule = rule if rule is not None else SampleRule()
-        if not isinstance(self._rule, SampleRule):
-            raise ValueError(f"rule must be a SampleRule, got {type(self._rule).__name__}")
+        if rule is not None and not isinstance(rule, SampleRule):
+            raise ValueError(f"rule must be a SampleRule or None, got {type(rule).__name__}")
+        self._rule = rule
         dim = self._dim = workspace.dim
         self._wrist = self.DeclareVectorInputPort("human_wrist", dim)
         self._time = self.DeclareVectorInputPort("wrist_time", 1) if timestamped else None
@@ -163,7 +167,7 @@ class WorkspaceNormalizer(LeafSystem):
         return None if x[-1] < 0.5 else np.array(x[:-1])
 
     @property
-    def rule(self) -> SampleRule:
+    def rule(self) -> SampleRule | None:
         return self._rule
 
     def _screen(self, context: Context) -> tuple[np.ndarray, float, str]:
@@ -173,7 +177,7 @@ class WorkspaceNormalizer(LeafSystem):
         p = np.asarray(self._wrist.Eval(context), float)
         stamp = float(self._time.Eval(context)[0]) if self._time is not None else context.get_time()
         good = np.array(x[D + 1:2 * D + 1]) if x[2 * D + 3] > 0.5 else None
-        seen = float(x[2 * D + 2]) if x[2 * D + 4] > 0.5 else None
+        seen = float(x[2 * D + 2]) if x[2 * D + 4] > 0.5 and self._time is not None else None  # no stamps: all new
         return p, stamp, screen_sample(p, stamp, good, float(x[2 * D + 1]), seen, self._rule)
 
     def start(self, context: Context) -> np.ndarray | None:

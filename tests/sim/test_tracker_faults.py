@@ -78,7 +78,7 @@ def test_the_gating_bridges_short_gaps_and_holds_after_the_lost_timeout():
         s = gating_step(s, i * dt, np.array([0.01 * i, 0, 0]), SkillLibrary(), rule)
     n = s.motion.n
     t = 10 * dt
-    while t - 9 * dt <= 0.5:  # NaN for up to the timeout: bridged, nothing appended, still observing
+    while t - 10 * dt <= 0.5:  # NaN for up to the timeout: bridged, nothing appended, still observing
         s = gating_step(s, t, np.full(3, np.nan), SkillLibrary(), rule)
         assert s.status != "lost" and s.motion.n == n
         t += dt
