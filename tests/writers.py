@@ -32,17 +32,6 @@ def extend_one_at_a_time(path: str, demos: list, barrier) -> int:
     return os.getpid()
 
 
-def extend_without_lock(path: str, demos: list, barrier) -> int:
-    """The unsafe way (load, extend, save with no check): what the 4-writer test is guarding against."""
-    barrier.wait()
-    config = LibraryConfig(**ONE_COMPONENT_PER_DEMO)
-    for d in demos:
-        lib = SkillLibrary.load(path) if os.path.exists(path) else SkillLibrary(config)
-        lib.partial_fit(d)
-        lib.save(path, expected_generation=None)
-    return os.getpid()
-
-
 def grow_forever(path: str, n_max: int, started) -> None:
     """Resume the stream from the file, then save after every demonstration until ``n_max`` (killed before).
 

@@ -121,11 +121,9 @@ class HumanWristSource(LeafSystem):
 
     def SetFeed(self, context: Context, feed) -> None:
         """Deliver ``feed`` (a TrackerFeed, or None for the perfect replay of the trial) in ``context``."""
-        from drake_skills.systems.wrist_faults import TrackerFeed
-
         if self._passthrough:
             raise ValueError("HumanWristSource: SetFeed needs replay mode (passthrough=False)")
-        if feed is not None and not isinstance(feed, TrackerFeed):
+        if feed is not None and type(feed).__name__ != "TrackerFeed":  # no import: wrist_faults imports us
             raise ValueError(f"feed must be a TrackerFeed or None, got {type(feed).__name__}")
         context.get_mutable_abstract_parameter(self._feed_index).set_value((feed,))
 
