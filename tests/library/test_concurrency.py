@@ -25,10 +25,12 @@ def ctx():
     """Forkserver: writers are forked from a clean server that has the library imported already.
 
     The server ignores the parent's sys.path (Python 3.11), so it gets the test directory
-    through PYTHONPATH to import ``writers`` once, not in every writer (~1 s each).
+    through PYTHONPATH to import ``writers`` once, not in every writer (~1 s each); the learn
+    command's modules (pydrake's yaml among them) are preloaded for the same reason.
     """
     c = mp.get_context("forkserver")
-    c.set_forkserver_preload(["drake_skills.library.incremental", "writers"])
+    c.set_forkserver_preload(["writers", "drake_skills.cli", "drake_skills.commands.learn", "drake_skills.sim.config",
+                            "drake_skills.data.demos"])
     tests = str(Path(writers.__file__).parent)
     old = os.environ.get("PYTHONPATH")
     os.environ["PYTHONPATH"] = tests + (os.pathsep + old if old else "")
@@ -198,7 +200,7 @@ def test_a_writer_killed_at_random_moments_never_leaves_a_corrupt_file(tmp_path,
         pr = ctx.Process(target=writers.grow_forever, args=(str(p), 100_000, started))
         pr.start()
         assert started.wait(30)
-        time.sleep(float(rng.uniform(0.0, 0.05)))  # a few saves (each ~5-10 ms with its fsync)
+        time.sleep(float(rng.uniform(0.0, 0.05)))  # a few saves (each ~10 ms with its fsync)
         os.kill(pr.pid, signal.SIGKILL)
         pr.join(30)
         assert pr.exitcode == -signal.SIGKILL, pr.exitcode

@@ -86,9 +86,18 @@ def test_the_gating_bridges_short_gaps_and_holds_after_the_lost_timeout():
     assert s.status == "lost" and s.final and s.component is None and s.rejected > 0
 
 
+#: Every fault at once, at rates well above the demo presets.
+ALL_FAULTS = TrackerFaults(dropout_rate=1.0, stale_rate=1.0, nan_rate=3.0, outlier_rate=3.0, latency=0.05)
+
+
 @pytest.fixture(scope="module")
-def subject():
-    return generate_subject(1, n_demos=4, seed=0)
+def taught():
+    """One Diagram, taught three tomato demonstrations, for both closed-loop trials (one build: ~1 s)."""
+    subject = generate_subject(1, n_demos=4, seed=0)
+    sim = CollaborationSim(SimConfig(faults=ALL_FAULTS), SkillLibrary(), subject.workspace())
+    for demo in subject.by_task("tomato")[:3]:
+        sim.teach(demo)
+    return sim, subject.by_task("tomato")[3]
 
 
 def _within_limits(log):
@@ -98,24 +107,19 @@ def _within_limits(log):
     assert (np.abs(log.qd_desired) <= IIWA7_VELOCITY_LIMITS + 1e-6).all()
 
 
-def test_with_every_fault_at_once_the_command_stays_finite_and_within_limits(subject):
-    faults = TrackerFaults(dropout_rate=1.0, stale_rate=1.0, nan_rate=3.0, outlier_rate=3.0, latency=0.05)
-    sim = CollaborationSim(SimConfig(faults=faults), SkillLibrary(), subject.workspace())
-    for demo in subject.by_task("tomato")[:3]:
-        sim.teach(demo)
-    outcome, log = sim.run_trial(subject.by_task("tomato")[3])
+def test_with_every_fault_at_once_the_command_stays_finite_and_within_limits(taught):
+    sim, demo = taught
+    outcome, log = sim.run_trial(demo)
     _within_limits(log)
     assert outcome.status in {"skill", "unknown", "undecided", "lost"}
 
 
-def test_a_lost_wrist_makes_the_robot_hold(subject):
+def test_a_lost_wrist_makes_the_robot_hold(taught, monkeypatch):
     """The marker is lost 0.3 s into the motion and never comes back: 'lost', the robot holds still."""
-    faults = TrackerFaults(dropout_rate=0.0)
-    sim = CollaborationSim(SimConfig(faults=faults), SkillLibrary(), subject.workspace())
-    for demo in subject.by_task("tomato")[:3]:
-        sim.teach(demo)
-    demo = subject.by_task("tomato")[3]
-    real = tracker_feed
+    import drake_skills.systems.wrist_faults as wf
+
+    sim, demo = taught
+    real = wf.tracker_feed
 
     def losing(trial, f, rng, margin):
         feed = real(trial, f, rng, margin=margin)
@@ -123,14 +127,9 @@ def test_a_lost_wrist_makes_the_robot_hold(subject):
         pos[feed.times >= trial.start_time + 0.3] = np.nan
         return type(feed)(feed.times, pos, feed.stamps, feed.kinds)
 
-    import drake_skills.systems.wrist_faults as wf
-    sim.config.faults = TrackerFaults(latency=1e-9)  # "any" fault: the feed path is taken
-    orig = wf.tracker_feed
-    wf.tracker_feed = losing
-    try:
-        outcome, log = sim.run_trial(demo)
-    finally:
-        wf.tracker_feed = orig
+    monkeypatch.setattr(sim.config, "faults", TrackerFaults(latency=1e-9))  # "any" fault: the feed path is taken
+    monkeypatch.setattr(wf, "tracker_feed", losing)
+    outcome, log = sim.run_trial(demo)
     assert outcome.status == "lost" and outcome.component is None and not outcome.executed
     _within_limits(log)
     moved = np.abs(log.q_desired - log.q_desired[0]).max()
