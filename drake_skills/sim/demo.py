@@ -235,6 +235,12 @@ class CollaborationSim:
         h, ctx = self.handles, self.context
         self.diagram.SetDefaultContext(ctx)
         ctx.SetTime(t0)
+        self._set_wrist(demo, t0)
+        self.simulator.Initialize()
+
+    def _set_wrist(self, demo: Demonstration, t0: float) -> None:
+        """The wrist source replays ``demo`` from ``t0``, through ``config.faults``'s tracker if any."""
+        h, ctx = self.handles, self.context
         trial = WristTrial(demo.t, demo.human, t0)
         source_ctx = h.wrist_source.GetMyContextFromRoot(ctx)
         h.wrist_source.SetTrial(source_ctx, trial)
@@ -245,7 +251,6 @@ class CollaborationSim:
 
             rng = np.random.default_rng([self.config.seed, self._n_started])
             h.wrist_source.SetFeed(source_ctx, tracker_feed(trial, faults, rng, margin=self._feed_margin()))
-        self.simulator.Initialize()
 
     def _feed_margin(self) -> float:
         """Seconds of tracker feed after a demonstration's end (the longest a trial can go on)."""

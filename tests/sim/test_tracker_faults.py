@@ -134,3 +134,40 @@ def test_a_lost_wrist_makes_the_robot_hold(taught, monkeypatch):
     _within_limits(log)
     moved = np.abs(log.q_desired - log.q_desired[0]).max()
     assert moved < 1e-6, moved  # lost before any commit: the robot never left its hold pose
+
+
+def test_over_lcm_the_station_s_faulty_tracker_leaves_the_commands_within_limits_and_the_decision_as_without(
+        taught):
+    """The LCM station publishes the same faulty feed (memq://): every command on the bus is finite, within the
+    joint limits, and between two commands (5 ms) within the speed limits; the decision is the perfect tracker's
+    or 'lost' with the robot holding."""
+    from drake import lcmt_iiwa_command
+
+    from drake_skills.sim.lcm_demo import LcmCollaborationSim
+
+    direct, demo = taught
+    sim = LcmCollaborationSim(SimConfig(), direct.library, direct.workspace)
+    assert sim.parts.lcm.get_lcm_url() == "memq://"
+    perfect, _ = sim.run_trial(demo)
+    commands, wrists = [], []
+    sim.parts.lcm.Subscribe(sim.config.lcm.command_channel, lambda data: commands.append(
+        (lambda m: (m.utime, m.joint_position))(lcmt_iiwa_command.decode(data))))
+    from drake import lcmt_drake_signal
+
+    sim.parts.lcm.Subscribe(sim.config.lcm.wrist_channel,
+                            lambda data: wrists.append(lcmt_drake_signal.decode(data).val))
+    sim.config.faults = ALL_FAULTS
+    outcome, log = sim.run_trial(demo)
+    assert np.isnan(np.array(wrists)).any(axis=1).sum() >= 3  # the station sent the tracker's NaN
+    _within_limits(log)
+    q = np.array([c[1] for c in commands])
+    lower, upper = IIWA7_JOINT_LIMITS
+    assert len(q) > 100 and np.isfinite(q).all() and (q >= lower).all() and (q <= upper).all()
+    dt = np.diff([c[0] for c in commands]) * 1e-6
+    period = sim.config.lcm.command_period
+    steady = np.isclose(dt, period, atol=1e-6)
+    assert (np.abs(np.diff(q, axis=0))[steady] / period <= IIWA7_VELOCITY_LIMITS + 1e-9).all()
+    if outcome.status == "lost":
+        assert not outcome.executed
+    else:
+        assert (outcome.status, outcome.component) == (perfect.status, perfect.component), (outcome, perfect)
