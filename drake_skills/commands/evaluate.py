@@ -56,8 +56,10 @@ def register(sub) -> None:
                                     "settings (default LibraryConfig(); workspace = the bounding box of the "
                                     "training wrists) and report, on the source's test split: recognition "
                                     "(correct / wrong / undecided / unknown), components found, the robot "
-                                    "response error of predict_robot beside a task-mean baseline, and "
-                                    "recognition of path prefixes with the phase estimated (anticipation).")
+                                    "response error of predict_robot beside a task-mean baseline, "
+                                    "recognition of path prefixes with the phase estimated (anticipation), and "
+                                    "the commits of the Drake controller's decision logic replayed on each test "
+                                    "interaction (first commit, path share at it, skill executed).")
     add_common(q, "eval/interaction")
     q.add_argument("--data", type=Path, default=shared_data_path("buetepage_hr.npz"),
                    help=f"interactions file (default: ../shared/data/buetepage_hr.npz beside the repository, "
