@@ -42,8 +42,8 @@ def register(sub) -> None:
     q.add_argument("--data-seed", type=int, default=0, help="seed of the simulated data set (default 0)")
     q.set_defaults(func=run_salad)
 
-    q = esub.add_parser("sensitivity", help="how much room the defaults have: arc-length tolerance and gating "
-                                            "floor on letters and salad at once")
+    q = esub.add_parser("sensitivity", help="how much room the defaults have: the learned scale's prior, the "
+                                            "test quantiles and the raw arc length, on letters and salad at once")
     common(q, "sensitivity", 100)
     q.add_argument("--splits", type=int, default=None, help="salad train/test splits per subject (default 10)")
     q.set_defaults(func=run_sensitivity)
