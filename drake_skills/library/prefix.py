@@ -133,7 +133,7 @@ def score_phases(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarray
     logdet = np.sum(np.log1p(c * lam[:, None, :] / noise_var), axis=2)
     loglik = -0.5 * (m * D * (_LOG_2PI + np.log(noise_var)) + logdet + d2_obs)
     d2 = np.maximum((span - explained) / noise_var, 0.0)
-    rank = D * np.einsum("jnk,jkn->j", PtP, Pinv)           # tr(G G^+): directions spanned, per phase
+    rank = D * np.rint(np.einsum("jnk,jkn->j", PtP, Pinv))  # tr(G G^+): directions spanned, per phase
     dof = np.broadcast_to(np.maximum(rank, 1e-9)[:, None], (J, K)).copy()
     return loglik, d2, dof
 

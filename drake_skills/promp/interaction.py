@@ -141,7 +141,7 @@ def prefix_statistics(mean_h, cov_hh, Phi_o, y_obs, noise_var: float):
     U = u.reshape(D, -1)
     span = float(np.einsum("di,ij,dj->", U, Pinv, U))
     d2 = max((span - explained) / noise_var, 0.0)
-    dof = float(D * np.trace(PtP @ Pinv))
+    dof = float(D * np.rint(np.trace(PtP @ Pinv)))
     return float(loglik), float(d2), max(dof, 1e-9)
 
 
