@@ -5,6 +5,10 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 export PYTHON
+# The library's products are small (21-161 weights): OpenBLAS threads cost more to start than they
+# save, several times over on 2 cores. Override with OPENBLAS_NUM_THREADS=n make ...
+OPENBLAS_NUM_THREADS ?= 1
+export OPENBLAS_NUM_THREADS
 
 .PHONY: demo test bench notebooks install prereqs clean
 

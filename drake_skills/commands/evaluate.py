@@ -42,8 +42,8 @@ def register(sub) -> None:
     q.add_argument("--data-seed", type=int, default=0, help="seed of the simulated data set (default 0)")
     q.set_defaults(func=run_salad)
 
-    q = esub.add_parser("sensitivity", help="how much room the defaults have: arc-length tolerance and gating "
-                                            "floor on letters and salad at once")
+    q = esub.add_parser("sensitivity", help="how much room the defaults have: the learned scale's prior, the "
+                                            "test quantiles and the raw arc length, on letters and salad at once")
     common(q, "sensitivity", 100)
     q.add_argument("--splits", type=int, default=None, help="salad train/test splits per subject (default 10)")
     q.set_defaults(func=run_sensitivity)
@@ -56,8 +56,10 @@ def register(sub) -> None:
                                     "settings (default LibraryConfig(); workspace = the bounding box of the "
                                     "training wrists) and report, on the source's test split: recognition "
                                     "(correct / wrong / undecided / unknown), components found, the robot "
-                                    "response error of predict_robot beside a task-mean baseline, and "
-                                    "recognition of path prefixes with the phase estimated (anticipation).")
+                                    "response error of predict_robot beside a task-mean baseline, "
+                                    "recognition of path prefixes with the phase estimated (anticipation), and "
+                                    "the commits of the Drake controller's decision logic replayed on each test "
+                                    "interaction (first commit, path share at it, skill executed).")
     add_common(q, "eval/interaction")
     q.add_argument("--data", type=Path, default=shared_data_path("buetepage_hr.npz"),
                    help=f"interactions file (default: ../shared/data/buetepage_hr.npz beside the repository, "
@@ -84,6 +86,10 @@ def register(sub) -> None:
     q.add_argument("--orders", type=int, default=None, help="random orders of LASA-30 (default 3, --quick: 1)")
     q.add_argument("--sizes", type=int, nargs="+", default=None, metavar="K",
                    help="numbers of synthetic skills (default 10 30 100 300 1000, --quick: 10 30)")
+    q.add_argument("--shapes", default=None, metavar="SET",
+                   help="LASA shapes in the library: 'all' (default), 'half-a' or 'half-b' (every other shape "
+                        "of the LASA list, from the first or the second: the defaults were chosen on half A), "
+                        "or comma-separated names")
     q.add_argument("--no-progress", action="store_true", help="no progress bars")
     add_config(q)
     q.set_defaults(func=run_scale)
@@ -154,6 +160,22 @@ def run_salad(args: argparse.Namespace) -> int:
     return _finish(rep, args.out, t0)
 
 
+def _lasa_shapes(spec: str | None):
+    """``--shapes``: None (the settings' default), a half of :data:`~drake_skills.data.lasa.LASA_SHAPES`, or names."""
+    from drake_skills.data.lasa import LASA_SHAPES
+
+    if spec is None or spec == "all":
+        return None
+    if spec in ("half-a", "half-b"):
+        return tuple(LASA_SHAPES[0 if spec == "half-a" else 1::2])
+    names = tuple(n.strip() for n in spec.split(",") if n.strip())
+    unknown = [n for n in names if n not in LASA_SHAPES]
+    if unknown or not names:
+        raise ValueError(f"--shapes: unknown LASA shapes {unknown or [spec]}; use all, half-a, half-b or names "
+                         f"from {', '.join(LASA_SHAPES)}")
+    return names
+
+
 def run_scale(args: argparse.Namespace) -> int:
     from drake_skills.evaluation.common import use_agg
     from drake_skills.evaluation.scale import ScaleSettings, evaluate_scale
@@ -161,7 +183,8 @@ def run_scale(args: argparse.Namespace) -> int:
     use_agg()
     t0 = time.time()
     base = ScaleSettings.quick(seed=args.seed) if args.quick else ScaleSettings(seed=args.seed)
-    overrides = {"lasa_orders": args.orders, "sizes": tuple(args.sizes) if args.sizes else None}
+    overrides = {"lasa_orders": args.orders, "sizes": tuple(args.sizes) if args.sizes else None,
+                 "lasa_shapes": _lasa_shapes(args.shapes)}
     s = replace(base, library=_library(args), **{k: v for k, v in overrides.items() if v is not None})
     rep = evaluate_scale(s, progress=not args.no_progress)
     rep.summary["command"] = " ".join(["drake-skills", "eval", "scale"] + sys.argv[3:])

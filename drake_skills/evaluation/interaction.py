@@ -22,6 +22,13 @@ Protocol (one *order* = one random permutation of the training interactions):
    recognized **without** ``observed_fraction`` (the library estimates the phase):
    correct / wrong / undecided / unknown and the estimated phase against the true
    fraction.
+6. Commits: every test interaction replayed sample by sample through the Drake
+   controller's decision logic (:func:`~drake_skills.systems.gating.gating_step` with
+   the default :class:`~drake_skills.systems.decision_rule.DecisionRule`, the wrist
+   sampled every ``GATING_PERIOD`` as the gating samples it): the skill the robot
+   would commit to first and at what share of the path, and the skill it would be
+   executing when the motion is over (a wrong commit the gating revised in time is
+   not executed).
 
 Figures are over orders x test interactions. Nothing here is tuned on the test split.
 """
@@ -36,7 +43,7 @@ from drake_skills.data.demonstration import Demonstration
 from drake_skills.data.interaction import COLUMNS, load_interactions
 from drake_skills.data.workspace import Workspace
 from drake_skills.evaluation.common import EvalReport, Table, run_trials, trial_rng
-from drake_skills.evaluation.labeled import LabeledLibrary, outcome_fractions
+from drake_skills.evaluation.labeled import CORRECT, UNKNOWN, WRONG, LabeledLibrary, outcome_fractions
 from drake_skills.library.incremental import LibraryConfig
 from drake_skills.promp.preprocessing import arc_length, resample_in_time, vertex_indices
 
@@ -164,6 +171,52 @@ class InteractionTrial:
     prefix_phases: np.ndarray
     #: Label of every component (majority task of what it absorbed), in id order.
     component_tasks: tuple
+    #: Commits (:func:`replay_commits`), per test interaction: outcome of the first commit
+    #: (UNKNOWN if none), share of the path observed at it (NaN if none), outcome of the
+    #: skill executed at the end (UNKNOWN / UNDECIDED if the robot holds).
+    first_commit: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    commit_fraction: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    executed: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+
+
+def replay_commits(library, demo: Demonstration, workspace: Workspace, rule=None):
+    """Replay a human motion through the gating's decision logic; returns the final :class:`GatingDecision`.
+
+    The wrist is sampled every ``GATING_PERIOD`` seconds (linear interpolation of
+    ``demo.human`` over ``demo.t``), normalized relative to its first sample (Eq. 14,
+    as the normalizer system does) and fed to
+    :func:`~drake_skills.systems.gating.gating_step` with ``rule`` (default
+    :class:`~drake_skills.systems.decision_rule.DecisionRule`). If the recording ends
+    before the gating's final answer, the final answer is given on the whole motion, as
+    at the gating's time-out.
+    """
+    from drake_skills.systems.decision_rule import DecisionRule
+    from drake_skills.systems.gating import GATING_PERIOD, GatingDecision, gating_step, recognize_motion, _belief
+
+    rule = rule or DecisionRule()
+    times = np.arange(demo.t[0], demo.t[-1] + 1e-12, GATING_PERIOD)
+    raw = np.stack([np.interp(times, demo.t, demo.human[:, d]) for d in range(demo.human.shape[1])], axis=1)
+    y = workspace.normalize(raw, subtract_start=False)
+    if library.config.subtract_start:
+        y = y - y[0]
+    state = GatingDecision()
+    for t, sample in zip(times - times[0], y):
+        state = gating_step(state, float(t), sample, library, rule)
+        if state.final:
+            return state
+    rec = recognize_motion(library, state.motion, whole=True)
+    b = _belief(float(times[-1] - times[0]), rec)
+    comp = b.best if b.status == "skill" else None
+    return replace(state, component=comp, final=True, status=b.status)
+
+
+def _path_share(motion, t: float, tolerance: float) -> float:
+    """Share of the motion's path (the library's arc length) observed by time ``t``."""
+    _, s = arc_length(motion.samples, tolerance)
+    if s[-1] <= 0:
+        return float("nan")
+    _, s_t = arc_length(motion.samples[motion.times <= t + 1e-12], tolerance)
+    return float(s_t[-1] / s[-1])
 
 
 def _rms(a, b) -> float:
@@ -187,6 +240,7 @@ def interaction_trial(ctx: InteractionContext, index: int) -> InteractionTrial:
     errs = np.full((3, n_test), np.nan)
     p_out, p_phase = np.empty((n_test, n_f), int), np.full((n_test, n_f), np.nan)
     Phi_r = cfg.basis_robot.phi_uniform(s.n_steps)
+    first, share, executed = np.full(n_test, UNKNOWN), np.full(n_test, np.nan), np.empty(n_test, int)
     for i, d in enumerate(ctx.test):
         rec = lib.recognize(d.human, observed_fraction=1.0)
         outcomes[i] = lab.outcome(rec.component, d.task, rec.status)
@@ -204,9 +258,14 @@ def interaction_trial(ctx: InteractionContext, index: int) -> InteractionTrial:
             p_out[i, k] = lab.outcome(r.component, d.task, r.status)
             if r.status == "skill":
                 p_phase[i, k] = r.phase
+        g = replay_commits(lib, d, ctx.workspace)
+        if g.commits:
+            first[i] = lab.outcome(g.commits[0], d.task)
+            share[i] = _path_share(g.motion, g.commit_time, cfg.resample_tolerance)
+        executed[i] = lab.outcome(g.component, d.task, g.status)
     labels = tuple(lab.label_of(c.id) for c in lib.components)
     return InteractionTrial(lib.n_components, outcomes, d2_min, d2_thr, errs[0], errs[1], errs[2], p_out, p_phase,
-                            labels)
+                            labels, first, share, executed)
 
 
 def _fractions(outcomes) -> list[float]:
@@ -266,7 +325,7 @@ def evaluate_interaction(settings: InteractionSettings, *, workers: int = 1, pro
     -------
     EvalReport
         Tables ``recognition``, ``components``, ``response``, ``anticipation``,
-        ``test_interactions``; figure ``interaction``.
+        ``commits``, ``test_interactions``; figure ``interaction``.
     """
     s = settings
     ctx = context if context is not None else InteractionContext.of(s)
@@ -337,9 +396,33 @@ def evaluate_interaction(settings: InteractionSettings, *, workers: int = 1, pro
                      rows, caption="Per test interaction, over orders: the squared Mahalanobis distance to the "
                                    "closest component against the novelty threshold (chi-square quantile).")
 
+    F = np.stack([t.first_commit for t in trials])
+    S = np.stack([t.commit_fraction for t in trials])
+    X = np.stack([t.executed for t in trials])
+    n_all = F.size
+    committed = np.isfinite(S)
+    first_wrong = float(np.sum(F == WRONG)) / n_all
+    rows = []
+    for task in tasks + ["all"]:
+        m = np.ones(len(ctx.test), bool) if task == "all" else test_tasks == task
+        f_, s_, x_ = F[:, m], S[:, m], X[:, m]
+        c_ = np.isfinite(s_)
+        n_c = int(c_.sum())
+        rows.append([task, f_.size, n_c / f_.size, float(np.sum(f_ == CORRECT)) / max(n_c, 1),
+                     float(np.sum(f_ == WRONG)) / max(n_c, 1),
+                     float(np.median(s_[c_])) if n_c else float("nan"), *_fractions(x_)])
+    commits = Table(["task", "trials", "committed", "first commit correct", "first commit wrong",
+                     "median path share at commit", *(f"executed {o}" for o in OUTCOMES)], rows,
+                    caption=("Test interactions replayed through the Drake controller's decision logic "
+                             "(gating_step, default DecisionRule: re-decide every 1/16 s, commit after 2 equal "
+                             "answers, final answer on the whole motion when the wrist rests): the first commit "
+                             "(correct / wrong over commits) and the share of the path observed at it; 'executed' "
+                             "is the skill the robot runs when the motion is over (a wrong commit revised in time "
+                             "is not executed), over all trials."))
+
     rep = EvalReport("Real human-robot interactions", {
         "recognition": recognition, "components": components, "response": response,
-        "anticipation": anticipation, "test_interactions": per_test})
+        "anticipation": anticipation, "commits": commits, "test_interactions": per_test})
     c, w, d_, u = _fractions(out)
     allr = err_by_task["all"]
     rep.summary = {
@@ -350,6 +433,11 @@ def evaluate_interaction(settings: InteractionSettings, *, workers: int = 1, pro
         "response_error_conditioned": allr[0], "response_error_component_mean": allr[1],
         "response_error_task_mean": allr[2],
         "anticipation": {str(f): dict(zip(OUTCOMES, fr)) for f, fr in zip(s.fractions, frac_rows)},
+        "commits": {"committed": float(committed.mean()),
+                    "first_commit_wrong_of_commits": float(np.sum(F == WRONG)) / max(int(committed.sum()), 1),
+                    "first_commit_wrong_of_trials": first_wrong,
+                    "median_path_share_at_commit": float(np.median(S[committed])) if committed.any() else None,
+                    "executed": dict(zip(OUTCOMES, _fractions(X)))},
         "goals": {"correct >= 0.95": c >= 0.95, "wrong <= 0.02": w <= 0.02,
                   "4 <= components <= 6": bool(4 <= K.mean() <= 6),
                   "conditioned response below task mean": bool(allr[0] < allr[2])},

@@ -66,6 +66,7 @@ from drake_skills.data.workspace import Workspace
 from drake_skills.library import storage
 from drake_skills.library.algorithm import ComponentModel, Components, Metric, fold_in, gating_metric
 from drake_skills.library.config import NOVELTY_TESTS, LibraryConfig, WorkspaceBounds
+from drake_skills.library.guards import UNITS_RANGE, data_warning
 from drake_skills.library.novelty import novelty_rule
 from drake_skills.library.recognition import RecognitionMixin, _Path
 from drake_skills.library.scale import SharedScale, shared_covariance
@@ -83,14 +84,6 @@ __all__ = ["Component", "ComponentState", "DataWarning", "LibraryChangedError", 
 
 log = logging.getLogger(__name__)
 
-#: The extent of a motion (its largest per-axis range after Eq. 14) as fractions of the
-#: normalized workspace scale (10 without a workspace, as the settings assume): a whole
-#: motion spanning less than the first, or any motion spanning more than the second, is
-#: taken to be in other units (:class:`UnitsWarning`). Whole motions of our data sets
-#: span 0.14-1.0 of the scale normalized (LASA 1.4-5.3 units with the letters' bounding
-#: box, salad 2.0-7.0, buetepage_hr 4.7-9.9) and 0.03-0.06 given in metres without a
-#: workspace (0.28-0.63 m); in millimetres, 28-63.
-UNITS_RANGE = (0.1, 10.0)
 
 
 def _read_only(a: np.ndarray) -> np.ndarray:
@@ -355,38 +348,12 @@ class SkillLibrary(RecognitionMixin):
 
     def _guard(self, y: np.ndarray, workspace, normalized: bool, *, whole: bool, query: bool,
                where: str | None, stacklevel: int = 3) -> None:
-        """Warn about a missing workspace or data in other units (see :data:`UNITS_RANGE`).
-
-        ``y`` are the samples after Eq. (14), ``whole`` says they cover a whole motion
-        (a prefix may span little), ``query`` that they are asked about, not taught.
-        """
+        """Warn about a missing workspace or data in other units (:func:`~drake_skills.library.guards.data_warning`)."""
         ws = workspace if workspace is not None else self.config.workspace
-        if ws is None and not normalized and self._with_workspace:
-            call = "recognize()/predict_robot()" if query else "partial_fit()"
-            self._warn_once("workspace", WorkspaceWarning,
-                            f"{where + ': ' if where else ''}{call} without a workspace on a library trained with "
-                            f"one: the motion is taken in raw units and will likely be 'unknown'; pass workspace= "
-                            f"(the subject's Workspace) or, for samples already in normalized units, normalized=True",
-                            stacklevel)
-            return  # the units test would only repeat it
-        scale = ws.scale if ws is not None else 10.0
-        extent = float(np.ptp(y, axis=0).max())
-        low, high = UNITS_RANGE[0] * scale, UNITS_RANGE[1] * scale
-        if (whole and extent < low) or extent > high:
-            side = "below" if extent < low else "above"
-            if ws is not None:
-                fix = "are the workspace and the data in the same units?"
-            elif normalized:
-                fix = "normalized=True expects samples in the library's normalized units (Eq. 14 applied)."
-            else:
-                fix = ("raw metres or millimetres? Pass the subject's workspace= (Workspace.from_calibration("
-                       "motions), or the bounding box of the training data: Workspace.from_calibration([d.human "
-                       "for d in demos])), or normalize the data to [0, %g] first." % scale)
-            what = where or ("the motion" if query else "the demonstration")
-            self._warn_once("units", UnitsWarning,
-                            f"{what} spans {extent:.3g} units, far {side} the normalized range [0, {scale:g}] the "
-                            f"library's settings assume (a whole motion spans {low:g} to {high:g} units in it): "
-                            f"{fix}", stacklevel)
+        found = data_warning(y, ws, normalized, whole=whole, query=query, where=where,
+                             trained_with_workspace=self._with_workspace)
+        if found is not None:
+            self._warn_once(*found, stacklevel)
 
     def human_samples(self, human, *, workspace: Workspace | None = None, observed_fraction: float = 1.0,
                       normalized: bool = False, where: str | None = None) -> np.ndarray:

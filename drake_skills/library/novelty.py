@@ -61,14 +61,22 @@ def _chi2_ppf(q: float, dof: int) -> float:
 
 
 def chi2_ppf(q: float, dof):
-    """``scipy.stats.chi2.ppf(q, dof)``: cached for an integer ``dof`` (the usual case), vectorized for an array.
+    """``scipy.stats.chi2.ppf(q, dof)``: cached for integer degrees of freedom, a scalar or an array.
 
-    A prefix observes fewer weight directions than a whole motion, so its test has
-    a (non-integer, per component) effective number of degrees of freedom.
+    A prefix spans fewer directions than a whole motion, so its test has fewer (and,
+    per component, different) degrees of freedom; they are integers, and the
+    quantile of each distinct value is computed once. Non-integer ``dof`` is passed
+    to scipy as is.
     """
-    if np.ndim(dof) == 0 and float(dof) == int(dof):
-        return _chi2_ppf(float(q), int(dof))
-    return chi2.ppf(q, np.asarray(dof, float))
+    if np.ndim(dof) == 0:
+        if float(dof) == int(dof):
+            return _chi2_ppf(float(q), int(dof))
+        return float(chi2.ppf(q, float(dof)))
+    d = np.asarray(dof, float)
+    if d.size and np.all(d == np.floor(d)):
+        values, inverse = np.unique(d, return_inverse=True)
+        return np.array([_chi2_ppf(float(q), int(v)) for v in values])[inverse].reshape(d.shape)
+    return chi2.ppf(q, d)
 
 
 @dataclass(frozen=True)

@@ -133,7 +133,8 @@ def score_phases(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarray
     logdet = np.sum(np.log1p(c * lam[:, None, :] / noise_var), axis=2)
     loglik = -0.5 * (m * D * (_LOG_2PI + np.log(noise_var)) + logdet + d2_obs)
     d2 = np.maximum((span - explained) / noise_var, 0.0)
-    dof = np.maximum(lam.shape[1] - noise_var * np.sum(1.0 / denom, axis=2), 1e-9)
+    rank = D * np.rint(np.einsum("jnk,jkn->j", PtP, Pinv))  # tr(G G^+): directions spanned, per phase
+    dof = np.broadcast_to(np.maximum(rank, 1e-9)[:, None], (J, K)).copy()
     return loglik, d2, dof
 
 

@@ -109,10 +109,16 @@ def prefix_statistics(mean_h, cov_hh, Phi_o, y_obs, noise_var: float):
       residual orthogonal to the basis (fit and sensor noise, whose samples are far from
       independent) is left out, so the statistic is calibrated like the whole-motion
       test on the weights, for any number of samples;
-    * ``dof``: the effective number of weight directions the samples observe,
-      ``tr(G S A^{-1}) = h - sigma^2 tr(A^{-1})`` (``h`` for a whole motion, fewer for
-      a short prefix, whose later basis functions see no samples); ``d2`` is
-      chi-square with about ``dof`` degrees of freedom under the model.
+    * ``dof``: the number of directions of the samples' space the basis spans,
+      ``tr(G G^+) = D rank(Phi_o)`` (``h`` for a whole motion, fewer for a prefix of
+      fewer samples than basis functions or too short for the later ones, which
+      :func:`numpy.linalg.pinv` at ``rcond`` 1e-10 leaves out); ``d2`` is exactly
+      chi-square with ``dof`` degrees of freedom under the model: every spanned
+      direction carries ``sigma^2 + c lambda_i`` of variance and ``d2`` divides each by
+      it, however little the weights move it. (The effective number
+      ``tr(G S A^{-1})`` of weight directions observed, which we used before, is about
+      half of that for a prefix of 10-50 %: the test then rejected a prefix of the
+      right skill about 8 % of the time at the 0.999 quantile.)
 
     Returns
     -------
@@ -135,7 +141,7 @@ def prefix_statistics(mean_h, cov_hh, Phi_o, y_obs, noise_var: float):
     U = u.reshape(D, -1)
     span = float(np.einsum("di,ij,dj->", U, Pinv, U))
     d2 = max((span - explained) / noise_var, 0.0)
-    dof = float(h - noise_var * np.trace(Ainv))
+    dof = float(D * np.rint(np.trace(PtP @ Pinv)))
     return float(loglik), float(d2), max(dof, 1e-9)
 
 

@@ -48,7 +48,15 @@ def test_cli_eval_interaction_reports_no_wrong_answer_and_few_components(tmp_pat
     header, rows = _rows(out / "recognition.csv")
     assert rows[-1][0] == "all" and float(rows[-1][header.index("wrong")]) == 0.0
     assert (out / "interaction.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert "## anticipation" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "## anticipation" in printed and "## commits" in printed
+    # replayed through the controller's decision logic, the robot never executes a wrong skill
+    c = s["commits"]
+    assert c["executed"]["wrong"] == 0.0
+    assert abs(sum(c["executed"].values()) - 1) < 1e-12
+    assert 0.0 <= c["first_commit_wrong_of_commits"] <= 1.0 and 0.0 < c["median_path_share_at_commit"] < 1.0
+    header, rows = _rows(out / "commits.csv")
+    assert rows[-1][0] == "all" and float(rows[-1][header.index("executed wrong")]) == 0.0
 
 
 def test_prefix_is_cut_at_the_true_fraction_of_the_librarys_own_path_length():
@@ -87,3 +95,29 @@ def test_settings_reject_bad_values():
         InteractionSettings(orders=0)
     with pytest.raises(ValueError, match=r"fractions must be in \(0, 1\]"):
         InteractionSettings(fractions=(0.0, 0.5))
+
+
+def test_replay_commits_commits_to_a_taught_skill_early_and_holds_for_an_untaught_one():
+    """The gating replay: a taught skill is committed to before the motion ends and executed; an untaught one never."""
+    from drake_skills.data.synthetic import skill_bank
+    from drake_skills.data.workspace import Workspace
+    from drake_skills.evaluation.interaction import _path_share, replay_commits
+
+    bank = skill_bank(4, 0, separation=3.0)
+    rng = np.random.default_rng(1)
+    lib = SkillLibrary(LibraryConfig())
+    for _ in range(3):
+        for k in range(3):
+            lib.partial_fit(bank.demo(k, rng))
+    assert lib.n_components == 3
+    identity = Workspace(np.zeros(3), np.full(3, 10.0))
+    ids = [lib.recognize(bank.demo(k, rng).human, observed_fraction=1.0).component for k in range(3)]
+    for k in range(3):
+        d = bank.demo(k, rng)
+        g = replay_commits(lib, d, identity)
+        assert g.final and g.component == ids[k] and g.status == "skill"
+        assert g.commits and g.commits[0] == ids[k]
+        share = _path_share(g.motion, g.commit_time, lib.config.resample_tolerance)
+        assert 0.0 < share < 0.95, share
+    g = replay_commits(lib, bank.demo(3, rng), identity)
+    assert g.final and g.component is None and g.status == "unknown" and not g.commits

@@ -61,3 +61,17 @@ def test_cli_writes_the_tables_the_plot_and_the_summary(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["command"].startswith("drake-skills eval scale") and summary["synthetic"][0]["skills"] == 10
     assert np.isfinite(summary["lasa"]["components_mean"])
+
+
+def test_shapes_option_names_the_halves_the_defaults_were_chosen_and_reported_on():
+    """--shapes half-a / half-b are every other LASA shape (disjoint, together all 30); bad names are refused."""
+    from drake_skills.commands.evaluate import _lasa_shapes
+    from drake_skills.data.lasa import LASA_SHAPES
+
+    a, b = _lasa_shapes("half-a"), _lasa_shapes("half-b")
+    assert len(a) == len(b) == 15 and not set(a) & set(b) and set(a) | set(b) == set(LASA_SHAPES)
+    assert a[0] == LASA_SHAPES[0] and b[0] == LASA_SHAPES[1]
+    assert _lasa_shapes(None) is None and _lasa_shapes("all") is None
+    assert _lasa_shapes(f"{LASA_SHAPES[3]}, {LASA_SHAPES[5]}") == (LASA_SHAPES[3], LASA_SHAPES[5])
+    with pytest.raises(ValueError, match="unknown LASA shapes \\['Nope'\\]"):
+        _lasa_shapes("Nope")
