@@ -35,13 +35,14 @@ def extend_one_at_a_time(path: str, demos: list, barrier) -> int:
 def grow_forever(path: str, n_max: int, started) -> None:
     """Resume the stream from the file, then save after every demonstration until ``n_max`` (killed before).
 
-    Sets the event ``started`` once it has loaded the file, so the killer times its kill from then.
+    Sets the event ``started`` once its first save is done, so the killer times its kill
+    from then and every writer adds at least one version, however slow the disk.
     """
     lib = SkillLibrary.load(path) if os.path.exists(path) else SkillLibrary()
-    started.set()
     for k in range(lib.n_seen, n_max):
         lib.partial_fit(stream_demo(k))
         lib.save(path)
+        started.set()
 
 
 def learn_cli(argv: list, barrier) -> None:

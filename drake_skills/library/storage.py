@@ -49,6 +49,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+import os
 import zipfile
 from pathlib import Path
 
@@ -238,15 +239,18 @@ def _headers(z: zipfile.ZipFile, where: str, file_bytes: int) -> dict:
     return out
 
 
-def _read(path: Path, where: str):
-    """The JSON metadata, the schema version and an accessor for the arrays of a library file."""
-    if not path.exists():
-        raise FileNotFoundError(f"{where} does not exist")
-    if not zipfile.is_zipfile(path):
+def _read(f, where: str):
+    """The JSON metadata, the schema version and an accessor for the arrays of a library file open as ``f``.
+
+    Everything is read through ``f`` (the accessor too: call it before ``f`` is closed),
+    so a save that replaces the file meanwhile (a new inode) cannot mix two versions.
+    """
+    if not zipfile.is_zipfile(f):
         raise ValueError(f"{where} is truncated or not an .npz file")
     try:
-        with zipfile.ZipFile(path) as z:
-            headers = _headers(z, where, path.stat().st_size)
+        f.seek(0)
+        with zipfile.ZipFile(f) as z:
+            headers = _headers(z, where, os.fstat(f.fileno()).st_size)
         if "metadata" not in headers:
             raise ValueError(f"{where} is not a drake-skills library (missing ['metadata'])")
         shape, dtype = headers["metadata"]
@@ -255,7 +259,8 @@ def _read(path: Path, where: str):
         if dtype.itemsize // 4 > MAX_METADATA_CHARS:
             raise ValueError(f"{where}: metadata entry of {dtype.itemsize // 4} characters is larger than "
                              f"{MAX_METADATA_CHARS}")
-        with np.load(path, allow_pickle=False) as z:
+        f.seek(0)
+        with np.load(f, allow_pickle=False) as z:
             meta_raw = z["metadata"]
     except ValueError as exc:
         if str(exc).startswith(where):
@@ -296,7 +301,8 @@ def _read(path: Path, where: str):
             if dtype.kind not in "fiu":
                 raise ValueError(f"{where}: array {name!r} is not numeric ({dtype})")
         try:
-            with np.load(path, allow_pickle=False) as z:
+            f.seek(0)
+            with np.load(f, allow_pickle=False) as z:
                 out = {name: np.array(z[name], dtype=float) for name in expected}
         except (zipfile.BadZipFile, OSError, EOFError, KeyError, ValueError) as exc:
             raise ValueError(f"{where} is truncated or damaged ({type(exc).__name__}: {exc})") from None
@@ -347,16 +353,20 @@ def file_generation(path) -> int | None:
     if not path.exists():
         return None
     where = f"library file '{path}'"
-    return _generation(_read(path, where)[0], where)
+    with open(path, "rb") as f:
+        return _generation(_read(f, where)[0], where)
 
 
 def load_versioned(path) -> tuple[LibraryState, int]:
     """:func:`load_state` and the file's generation (0 for a file written before generations)."""
     path = Path(path)
     where = f"library file '{path}'"
-    meta, version, arrays = _read(path, where)
-    generation = _generation(meta, where)
-    return _state_of(meta, version, arrays, where), generation
+    if not path.exists():
+        raise FileNotFoundError(f"{where} does not exist")
+    with open(path, "rb") as f:  # one handle for the whole load
+        meta, version, arrays = _read(f, where)
+        generation = _generation(meta, where)
+        return _state_of(meta, version, arrays, where), generation
 
 
 def _state_of(meta: dict, version: int, arrays, where: str) -> LibraryState:

@@ -116,6 +116,28 @@ def test_update_file_leaves_the_file_as_it_was_when_a_demonstration_is_bad(tmp_p
     assert p.read_bytes() == before
 
 
+def test_an_unlocked_reader_sees_one_version_whole_while_a_save_replaces_the_file(tmp_path, monkeypatch):
+    """``learn --library`` reads the file before it takes the lock: a save landing between the reader's headers and
+    its arrays must not mix two versions (the reader keeps the version it opened)."""
+    p = tmp_path / "lib.npz"
+    demos = _demos(6, 4, noise=5.0)
+    SkillLibrary(LibraryConfig(**writers.ONE_COMPONENT_PER_DEMO)).fit(demos[:2]).save(p)
+    newer = SkillLibrary.load(p)
+    newer.partial_fit(demos[2])
+    newer.save(tmp_path / "newer.npz")
+    real_load = np.load
+
+    def replaced_meanwhile(*args, **kw):  # another writer's save lands after the reader's first look
+        os.replace(tmp_path / "newer.npz", p) if (tmp_path / "newer.npz").exists() else None
+        return real_load(*args, **kw)
+
+    monkeypatch.setattr(np, "load", replaced_meanwhile)
+    lib = SkillLibrary.load(p)
+    assert not (tmp_path / "newer.npz").exists()  # the replace happened during the load
+    assert lib.n_seen == 2 and lib.n_components == 2  # the version it opened, whole
+    assert SkillLibrary.load(p).n_seen == 3
+
+
 def test_the_lock_times_out_naming_the_holder_and_is_reentrant(tmp_path, ctx):
     p = tmp_path / "lib.npz"
     ready, release = ctx.Event(), ctx.Event()
@@ -200,7 +222,7 @@ def test_a_writer_killed_at_random_moments_never_leaves_a_corrupt_file(tmp_path,
         pr = ctx.Process(target=writers.grow_forever, args=(str(p), 100_000, started))
         pr.start()
         assert started.wait(30)
-        time.sleep(float(rng.uniform(0.0, 0.05)))  # a few saves (each ~10 ms with its fsync)
+        time.sleep(float(rng.uniform(0.0, 0.05)))  # after its first save: during one of the next few (~10 ms each)
         os.kill(pr.pid, signal.SIGKILL)
         pr.join(30)
         assert pr.exitcode == -signal.SIGKILL, pr.exitcode
