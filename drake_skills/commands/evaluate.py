@@ -12,12 +12,14 @@ def register(sub) -> None:
     from drake_skills.commands import add_common, add_config
     from drake_skills.evaluation.common import available_workers
 
-    p = sub.add_parser("eval", help="run the paper's experiments (letters, salad) and write tables and plots",
+    p = sub.add_parser("eval", help="run the experiments (letters, salad, sensitivity, interaction, scale) and write "
+                                    "tables and plots",
                        description="Reproduce the experiments of Sec. 4: `eval letters` (Sec. 4.1, Figs. 3-4) and "
                                    "`eval salad` (Sec. 4.2, Tables 1-3, Figs. 7c and 9, and the robot response "
-                                   "error vs the observed fraction), and `eval sensitivity` (the defaults against alternative "
-                                   "settings on both data sets). Writes .md and .csv tables, .png plots and "
-                                   "summary.json under --out.")
+                                   "error vs the observed fraction); `eval sensitivity` (the defaults against "
+                                   "alternative settings on both data sets), `eval interaction` (real human-robot "
+                                   "interactions on the source's test split) and `eval scale` (many skills in one "
+                                   "library). Writes .md and .csv tables, .png plots and summary.json under --out.")
     esub = p.add_subparsers(dest="experiment", metavar="EXPERIMENT")
     esub.required = True
 
@@ -83,7 +85,7 @@ def register(sub) -> None:
                                     "update and per recognition. Runs in one process (the timings compare).")
     add_common(q, "eval/scale")
     q.add_argument("--quick", action="store_true", help="reduced run (what the tests use)")
-    q.add_argument("--orders", type=int, default=None, help="random orders of LASA-30 (default 3, --quick: 1)")
+    q.add_argument("--orders", type=int, default=None, help="random orders of LASA-30 (default 3, --quick: 1; 0 skips LASA)")
     q.add_argument("--sizes", type=int, nargs="+", default=None, metavar="K",
                    help="numbers of synthetic skills (default 10 30 100 300 1000, --quick: 10 30)")
     q.add_argument("--shapes", default=None, metavar="SET",
@@ -164,11 +166,13 @@ def _lasa_shapes(spec: str | None):
     """``--shapes``: None (the settings' default), a half of :data:`~drake_skills.data.lasa.LASA_SHAPES`, or names."""
     from drake_skills.data.lasa import LASA_SHAPES
 
-    if spec is None or spec == "all":
+    if spec is None:
         return None
+    if spec == "all":
+        return tuple(LASA_SHAPES)
     if spec in ("half-a", "half-b"):
         return tuple(LASA_SHAPES[0 if spec == "half-a" else 1::2])
-    names = tuple(n.strip() for n in spec.split(",") if n.strip())
+    names = tuple(dict.fromkeys(n.strip() for n in spec.split(",") if n.strip()))
     unknown = [n for n in names if n not in LASA_SHAPES]
     if unknown or not names:
         raise ValueError(f"--shapes: unknown LASA shapes {unknown or [spec]}; use all, half-a, half-b or names "

@@ -25,10 +25,11 @@ Protocol (one *order* = one random permutation of the training interactions):
 6. Commits: every test interaction replayed sample by sample through the Drake
    controller's decision logic (:func:`~drake_skills.systems.gating.gating_step` with
    the default :class:`~drake_skills.systems.decision_rule.DecisionRule`, the wrist
-   sampled every ``GATING_PERIOD`` as the gating samples it): the skill the robot
-   would commit to first and at what share of the path, and the skill it would be
-   executing when the motion is over (a wrong commit the gating revised in time is
-   not executed).
+   sampled every ``GATING_PERIOD`` as the gating samples it; a recording that ends
+   before the wrist rests is answered at the rule's time-out): the skill the robot
+   would commit to first and at what share of the person's path, and the skill it
+   would be executing at the end (a wrong commit the gating revised in time is not
+   executed).
 
 Figures are over orders x test interactions. Nothing here is tuned on the test split.
 """
@@ -177,21 +178,30 @@ class InteractionTrial:
     first_commit: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
     commit_fraction: np.ndarray = field(default_factory=lambda: np.zeros(0))
     executed: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    #: Whether the gating's final answer came from the wrist resting (else: its time-out).
+    at_rest: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
 
 
 def replay_commits(library, demo: Demonstration, workspace: Workspace, rule=None):
-    """Replay a human motion through the gating's decision logic; returns the final :class:`GatingDecision`.
+    """Replay a human motion through the gating's decision logic.
 
     The wrist is sampled every ``GATING_PERIOD`` seconds (linear interpolation of
     ``demo.human`` over ``demo.t``), normalized relative to its first sample (Eq. 14,
     as the normalizer system does) and fed to
     :func:`~drake_skills.systems.gating.gating_step` with ``rule`` (default
-    :class:`~drake_skills.systems.decision_rule.DecisionRule`). If the recording ends
-    before the gating's final answer, the final answer is given on the whole motion, as
-    at the gating's time-out.
+    :class:`~drake_skills.systems.decision_rule.DecisionRule`). A recording that ends
+    before the wrist has rested is held at its last sample until the rule's
+    ``timeout``, where the gating gives its final answer on the whole motion.
+
+    Returns
+    -------
+    decision : GatingDecision
+        The final state (commits, commit time, the skill executed at the end).
+    at_rest : bool
+        The gating's final answer came from the wrist resting (not the time-out).
     """
     from drake_skills.systems.decision_rule import DecisionRule
-    from drake_skills.systems.gating import GATING_PERIOD, GatingDecision, gating_step, recognize_motion, _belief
+    from drake_skills.systems.gating import GATING_PERIOD, GatingDecision, gating_step
 
     rule = rule or DecisionRule()
     times = np.arange(demo.t[0], demo.t[-1] + 1e-12, GATING_PERIOD)
@@ -203,20 +213,23 @@ def replay_commits(library, demo: Demonstration, workspace: Workspace, rule=None
     for t, sample in zip(times - times[0], y):
         state = gating_step(state, float(t), sample, library, rule)
         if state.final:
-            return state
-    rec = recognize_motion(library, state.motion, whole=True)
-    b = _belief(float(times[-1] - times[0]), rec)
-    comp = b.best if b.status == "skill" else None
-    return replace(state, component=comp, final=True, status=b.status)
+            return state, True
+    t_end = max(float(times[-1] - times[0]) + GATING_PERIOD, rule.timeout)
+    return gating_step(state, t_end, y[-1], library, rule), False
 
 
-def _path_share(motion, t: float, tolerance: float) -> float:
-    """Share of the motion's path (the library's arc length) observed by time ``t``."""
-    _, s = arc_length(motion.samples, tolerance)
-    if s[-1] <= 0:
+def commit_share(demo: Demonstration, workspace: Workspace, tolerance: float, commit_time: float) -> float:
+    """Share of the person's whole path done at ``commit_time`` (s from the start), as the demo reports it.
+
+    :func:`~drake_skills.sim.demo.path_progress` (the library's arc length) at that time;
+    NaN when nothing was committed.
+    """
+    from drake_skills.sim.demo import path_progress
+
+    if not np.isfinite(commit_time):
         return float("nan")
-    _, s_t = arc_length(motion.samples[motion.times <= t + 1e-12], tolerance)
-    return float(s_t[-1] / s[-1])
+    t, share = path_progress(demo, workspace, tolerance)
+    return float(np.interp(commit_time, t, share))
 
 
 def _rms(a, b) -> float:
@@ -241,6 +254,7 @@ def interaction_trial(ctx: InteractionContext, index: int) -> InteractionTrial:
     p_out, p_phase = np.empty((n_test, n_f), int), np.full((n_test, n_f), np.nan)
     Phi_r = cfg.basis_robot.phi_uniform(s.n_steps)
     first, share, executed = np.full(n_test, UNKNOWN), np.full(n_test, np.nan), np.empty(n_test, int)
+    rest = np.zeros(n_test, bool)
     for i, d in enumerate(ctx.test):
         rec = lib.recognize(d.human, observed_fraction=1.0)
         outcomes[i] = lab.outcome(rec.component, d.task, rec.status)
@@ -258,14 +272,14 @@ def interaction_trial(ctx: InteractionContext, index: int) -> InteractionTrial:
             p_out[i, k] = lab.outcome(r.component, d.task, r.status)
             if r.status == "skill":
                 p_phase[i, k] = r.phase
-        g = replay_commits(lib, d, ctx.workspace)
+        g, rest[i] = replay_commits(lib, d, ctx.workspace)
         if g.commits:
             first[i] = lab.outcome(g.commits[0], d.task)
-            share[i] = _path_share(g.motion, g.commit_time, cfg.resample_tolerance)
+            share[i] = commit_share(d, ctx.workspace, cfg.resample_tolerance, g.commit_time)
         executed[i] = lab.outcome(g.component, d.task, g.status)
     labels = tuple(lab.label_of(c.id) for c in lib.components)
     return InteractionTrial(lib.n_components, outcomes, d2_min, d2_thr, errs[0], errs[1], errs[2], p_out, p_phase,
-                            labels, first, share, executed)
+                            labels, first, share, executed, rest)
 
 
 def _fractions(outcomes) -> list[float]:
@@ -399,6 +413,7 @@ def evaluate_interaction(settings: InteractionSettings, *, workers: int = 1, pro
     F = np.stack([t.first_commit for t in trials])
     S = np.stack([t.commit_fraction for t in trials])
     X = np.stack([t.executed for t in trials])
+    R = np.stack([t.at_rest for t in trials])
     n_all = F.size
     committed = np.isfinite(S)
     first_wrong = float(np.sum(F == WRONG)) / n_all
@@ -410,15 +425,19 @@ def evaluate_interaction(settings: InteractionSettings, *, workers: int = 1, pro
         n_c = int(c_.sum())
         rows.append([task, f_.size, n_c / f_.size, float(np.sum(f_ == CORRECT)) / max(n_c, 1),
                      float(np.sum(f_ == WRONG)) / max(n_c, 1),
-                     float(np.median(s_[c_])) if n_c else float("nan"), *_fractions(x_)])
+                     float(np.mean(s_[c_])) if n_c else float("nan"),
+                     float(np.median(s_[c_])) if n_c else float("nan"), float(R[:, m].mean()), *_fractions(x_)])
     commits = Table(["task", "trials", "committed", "first commit correct", "first commit wrong",
-                     "median path share at commit", *(f"executed {o}" for o in OUTCOMES)], rows,
+                     "mean path share at commit", "median path share at commit", "final answer at rest",
+                     *(f"executed {o}" for o in OUTCOMES)], rows,
                     caption=("Test interactions replayed through the Drake controller's decision logic "
                              "(gating_step, default DecisionRule: re-decide every 1/16 s, commit after 2 equal "
-                             "answers, final answer on the whole motion when the wrist rests): the first commit "
-                             "(correct / wrong over commits) and the share of the path observed at it; 'executed' "
-                             "is the skill the robot runs when the motion is over (a wrong commit revised in time "
-                             "is not executed), over all trials."))
+                             "answers, final answer on the whole motion when the wrist rests, or at the 10 s "
+                             "time-out for a recording that ends before it rests): the first commit (correct / "
+                             "wrong over commits) and the share of the person's path done at it; 'final answer at "
+                             "rest' is the share of trials whose final answer came from the wrist resting; "
+                             "'executed' is the skill the robot runs at the end (a wrong commit revised in time is "
+                             "not executed), over all trials."))
 
     rep = EvalReport("Real human-robot interactions", {
         "recognition": recognition, "components": components, "response": response,
@@ -437,6 +456,8 @@ def evaluate_interaction(settings: InteractionSettings, *, workers: int = 1, pro
                     "first_commit_wrong_of_commits": float(np.sum(F == WRONG)) / max(int(committed.sum()), 1),
                     "first_commit_wrong_of_trials": first_wrong,
                     "median_path_share_at_commit": float(np.median(S[committed])) if committed.any() else None,
+                    "mean_path_share_at_commit": float(np.mean(S[committed])) if committed.any() else None,
+                    "final_answer_at_rest": float(R.mean()),
                     "executed": dict(zip(OUTCOMES, _fractions(X)))},
         "goals": {"correct >= 0.95": c >= 0.95, "wrong <= 0.02": w <= 0.02,
                   "4 <= components <= 6": bool(4 <= K.mean() <= 6),

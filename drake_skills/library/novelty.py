@@ -20,7 +20,8 @@ All tests look at squared Mahalanobis distances under the shared gating covarian
 Two forms, chosen by ``LibraryConfig.novelty_test`` in :func:`novelty_rule`:
 
 * :class:`Chi2Rule` (default, scale free): thresholds are chi-square quantiles with as
-  many degrees of freedom as gating weights.
+  many degrees of freedom as gating weights (a whole motion), or as the directions a
+  beginning's samples span, ``D rank(Phi)`` (recognition from a prefix).
 * :class:`LogLikRule`, the paper's literal test on ``log p`` (``log_T_nov``,
   ``log_T_merge``); its settings depend on the dimension. Splits use the chi-square
   quantile in both forms.
@@ -73,10 +74,9 @@ def chi2_ppf(q: float, dof):
             return _chi2_ppf(float(q), int(dof))
         return float(chi2.ppf(q, float(dof)))
     d = np.asarray(dof, float)
-    if d.size and np.all(d == np.floor(d)):
-        values, inverse = np.unique(d, return_inverse=True)
-        return np.array([_chi2_ppf(float(q), int(v)) for v in values])[inverse].reshape(d.shape)
-    return chi2.ppf(q, d)
+    values, inverse = np.unique(d, return_inverse=True)
+    out = [_chi2_ppf(float(q), int(v)) if v == int(v) else float(chi2.ppf(q, v)) for v in values]
+    return np.array(out)[inverse].reshape(d.shape)
 
 
 @dataclass(frozen=True)

@@ -18,8 +18,8 @@ per phase serves all components: with ``Sigma = L L^T`` and ``L^T G L = Q Lambda
 so a recognition costs one ``h x h`` eigendecomposition per phase of the grid plus
 O(K h) per phase, not O(K h^3). The statistics are those of
 :func:`drake_skills.promp.interaction.prefix_statistics` (the marginal log-likelihood,
-the chi-square statistic of the part of the misfit the weights can explain, and its
-effective degrees of freedom), which the tests check this against.
+the chi-square statistic of the part of the misfit the basis spans, and its degrees of
+freedom ``D rank(Phi)``, exact under the model), which the tests check this against.
 
 The phase of component ``k`` is the grid phase of highest likelihood within a band
 around ``path length observed / component's mean path length`` (the path-length
@@ -70,7 +70,7 @@ def _whitened_gram(PtP: np.ndarray, chol: np.ndarray, D: int):
 
 @dataclass(frozen=True)
 class PrefixScores:
-    """Per component: the log-likelihood, chi-square statistic, effective dof and phase chosen."""
+    """Per component: the log-likelihood, chi-square statistic, its degrees of freedom and the phase chosen."""
 
     log_likelihoods: np.ndarray
     mahalanobis_sq: np.ndarray

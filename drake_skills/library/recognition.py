@@ -165,6 +165,8 @@ class RecognitionMixin:
         band = phase_band(guess)
         if len(comps) > PRUNE_MIN_COMPONENTS and isinstance(self._rule, Chi2Rule):
             sigma_max = self._cached("sigma_max", lambda: float(np.linalg.eigvalsh(metric.cov)[-1]))
+            # the quantile at h degrees of freedom is at least the one at D rank(Phi) <= h a
+            # beginning is tested at, so the bound never rules out a component the test keeps
             keep = prefix_candidates(comps.means_h, inflate, PHASE_GRID, band, ys, sigma_max,
                                      cfg.basis_human, noise, chi2_ppf(cfg.novelty_quantile, self.n_human))
             idx = np.flatnonzero(keep)

@@ -98,10 +98,15 @@ def test_settings_reject_bad_values():
 
 
 def test_replay_commits_commits_to_a_taught_skill_early_and_holds_for_an_untaught_one():
-    """The gating replay: a taught skill is committed to before the motion ends and executed; an untaught one never."""
+    """The gating replay: a taught skill is committed to before the motion ends and executed; an untaught one never.
+
+    The synthetic motions end while moving (the final answer comes at the gating's time-out); the
+    same motion followed by a 1 s rest is answered when the wrist rests, with the same decisions.
+    """
+    from drake_skills.data.demonstration import Demonstration
     from drake_skills.data.synthetic import skill_bank
     from drake_skills.data.workspace import Workspace
-    from drake_skills.evaluation.interaction import _path_share, replay_commits
+    from drake_skills.evaluation.interaction import commit_share, replay_commits
 
     bank = skill_bank(4, 0, separation=3.0)
     rng = np.random.default_rng(1)
@@ -114,10 +119,16 @@ def test_replay_commits_commits_to_a_taught_skill_early_and_holds_for_an_untaugh
     ids = [lib.recognize(bank.demo(k, rng).human, observed_fraction=1.0).component for k in range(3)]
     for k in range(3):
         d = bank.demo(k, rng)
-        g = replay_commits(lib, d, identity)
-        assert g.final and g.component == ids[k] and g.status == "skill"
-        assert g.commits and g.commits[0] == ids[k]
-        share = _path_share(g.motion, g.commit_time, lib.config.resample_tolerance)
-        assert 0.0 < share < 0.95, share
-    g = replay_commits(lib, bank.demo(3, rng), identity)
-    assert g.final and g.component is None and g.status == "unknown" and not g.commits
+        rest = np.arange(1, 65) / 64.0
+        held = Demonstration(np.concatenate([d.t, d.t[-1] + rest]),
+                             np.concatenate([d.human, np.repeat(d.human[-1:], rest.size, axis=0)]))
+        for demo, at_rest_expected in ((d, False), (held, True)):
+            g, at_rest = replay_commits(lib, demo, identity)
+            assert at_rest == at_rest_expected
+            assert g.final and g.component == ids[k] and g.status == "skill"
+            assert g.commits and g.commits[0] == ids[k]
+            share = commit_share(demo, identity, lib.config.resample_tolerance, g.commit_time)
+            assert 0.0 < share < 0.95, share
+    g, at_rest = replay_commits(lib, bank.demo(3, rng), identity)
+    assert g.final and not at_rest and g.component is None and g.status == "unknown" and not g.commits
+    assert np.isnan(commit_share(bank.demo(3, rng), identity, 0.1, g.commit_time))

@@ -71,7 +71,7 @@ def test_shapes_option_names_the_halves_the_defaults_were_chosen_and_reported_on
     a, b = _lasa_shapes("half-a"), _lasa_shapes("half-b")
     assert len(a) == len(b) == 15 and not set(a) & set(b) and set(a) | set(b) == set(LASA_SHAPES)
     assert a[0] == LASA_SHAPES[0] and b[0] == LASA_SHAPES[1]
-    assert _lasa_shapes(None) is None and _lasa_shapes("all") is None
-    assert _lasa_shapes(f"{LASA_SHAPES[3]}, {LASA_SHAPES[5]}") == (LASA_SHAPES[3], LASA_SHAPES[5])
+    assert _lasa_shapes(None) is None and _lasa_shapes("all") == tuple(LASA_SHAPES)
+    assert _lasa_shapes(f"{LASA_SHAPES[3]}, {LASA_SHAPES[5]},{LASA_SHAPES[3]}") == (LASA_SHAPES[3], LASA_SHAPES[5])
     with pytest.raises(ValueError, match="unknown LASA shapes \\['Nope'\\]"):
         _lasa_shapes("Nope")
