@@ -2,7 +2,7 @@
 
 Layers, bottom to top (a module may import from its own layer and those below)::
 
-    _checks, _io -> data -> promp -> library -> systems -> sim -> scenario -> evaluation, commands,
+    _checks, _io, _lock -> data -> promp -> library -> systems -> sim -> scenario -> evaluation, commands,
                                                                              benchmarks, cli
 
 Imports inside functions count: a lazy import is still an arrow.
@@ -17,7 +17,7 @@ import drake_skills
 PACKAGE = Path(drake_skills.__file__).parent
 #: Bottom to top; a name matches itself and everything under it.
 LAYERS = (
-    ("drake_skills._checks", "drake_skills._io"),
+    ("drake_skills._checks", "drake_skills._io", "drake_skills._lock"),
     ("drake_skills.data",),
     ("drake_skills.promp",),
     ("drake_skills.library",),

@@ -25,6 +25,13 @@ def _suites():
     return discover_suites()
 
 
+def _default(name: str) -> bool:
+    """Is the suite part of a plain ``drake-skills bench`` (a suite module may say ``DEFAULT = False``)?"""
+    import importlib
+
+    return getattr(importlib.import_module(f"drake_skills.benchmarks.{name}"), "DEFAULT", True)
+
+
 def register(subparsers) -> None:
     suites = sorted(_suites())
     parser = subparsers.add_parser("bench", help="measure speed (ProMP core, library, ...)",
@@ -32,7 +39,8 @@ def register(subparsers) -> None:
                                                "OUT/bench.json and OUT/bench.md.")
     parser.add_argument("--quick", action="store_true", help="fewer repeats and smaller sizes")
     parser.add_argument("--suite", choices=suites, action="append",
-                        help="suite to run (repeatable; default: all of " + ", ".join(suites) + ")")
+                        help="suite to run (repeatable; default: all of " + ", ".join(s for s in suites if _default(s))
+                             + "; soak only when named)")
     add_config(parser)  # libraries of the library and sim suites (default: each suite's own settings)
     add_out(parser, "bench", "bench.json and bench.md")  # no --seed: every suite fixes its own
     parser.set_defaults(func=main)
@@ -92,7 +100,7 @@ def format_table(rows: list[dict], *, markdown: bool = False, width: int = WIDTH
 
 def main(args: argparse.Namespace) -> int:
     suites = _suites()
-    names = args.suite or sorted(suites)
+    names = args.suite or sorted(n for n, run in suites.items() if _default(n))
     config = None
     if args.config is not None:
         from drake_skills.sim.config import load_config

@@ -35,6 +35,10 @@ def register(sub) -> None:
                    help="--transport lcm: seconds of latency added to every message by the simulated bus")
     p.add_argument("--lcm-wrist-drop", type=float, default=None, metavar="F",
                    help="--transport lcm: fraction of wrist messages the simulated bus drops (seeded)")
+    p.add_argument("--faults", default=None, metavar="KINDS",
+                   help="a misbehaving wrist tracker: comma-separated dropout, stale, nan, outlier, latency (or "
+                        "all), at the rates of drake_skills.systems.wrist_faults.PRESETS; the same trials are "
+                        "also run with a perfect tracker and the decisions printed side by side (OUT/faults.json)")
     p.add_argument("--meshcat", action="store_true",
                    help="serve the recording live on localhost instead of writing demo.html "
                         "(prints the URL, serves until Ctrl-C)")
@@ -50,6 +54,31 @@ def _row(r) -> str:
     if r.revisions:
         what += f", revised {r.revisions}x"
     return (f"{r.trial:5d}  {r.task:9s}  {what:34s}  {r.outcome:6s}  {frac:>6s}  {lead:>6s}  {flange:>9s}")
+
+
+def _compare_without_faults(cfg, demos, workspace, faulty, make_sim, out) -> None:
+    """Run the same trials with a perfect tracker; print and write both runs' decisions side by side."""
+    from drake_skills.sim.demo import run_collaboration
+    from drake_skills.systems.wrist_faults import TrackerFaults
+
+    print("the same trials with a perfect tracker:", flush=True)
+    clean, _ = run_collaboration(replace(cfg, faults=TrackerFaults()), demos, workspace, meshcat=None,
+                                 make_sim=make_sim)
+    print(f"{'trial':>5s}  {'task':9s}  {'perfect tracker':24s}  {'faulty tracker':24s}  same")
+    rows = []
+    for a, b in zip(clean.results, faulty.results):  # TrialResult dicts
+        same = (a["decision"], a["outcome"]) == (b["decision"], b["outcome"])
+        rows.append({"trial": a["trial"], "task": a["task"], "perfect": f"{a['decision']} {a['outcome']}",
+                     "faulty": f"{b['decision']} {b['outcome']}", "same": same})
+        print(f"{a['trial']:5d}  {a['task']:9s}  {rows[-1]['perfect']:24s}  {rows[-1]['faulty']:24s}  "
+              f"{'yes' if same else 'NO'}")
+    counts = {name: {"right": s.right, "wrong": s.wrong, "asked": s.asked, "within_limits": s.within_limits}
+              for name, s in (("perfect", clean), ("faulty", faulty))}
+    print(f"perfect: right {clean.right}, wrong {clean.wrong}, asked {clean.asked}; faulty: right {faulty.right}, "
+          f"wrong {faulty.wrong}, asked {faulty.asked}; same decision in {sum(r['same'] for r in rows)} of "
+          f"{len(rows)} trials; joint limits {'held' if faulty.within_limits else 'VIOLATED'} with faults")
+    (out / "faults.json").write_text(json.dumps({"faults": asdict(cfg.faults), "trials": rows, **counts},
+                                                indent=2) + "\n")
 
 
 def _result(d: dict):
@@ -76,6 +105,10 @@ def run(args: argparse.Namespace) -> int:
     if args.transport != "lcm" and any(v is not None for v in lcm_overrides.values()):
         raise ValueError("--lcm-url, --lcm-latency and --lcm-wrist-drop need --transport lcm")
     cfg = replace(cfg, lcm=replace(cfg.lcm, **{k: v for k, v in lcm_overrides.items() if v is not None}))
+    if args.faults is not None:
+        from drake_skills.systems.wrist_faults import faults_from_spec
+
+        cfg = replace(cfg, faults=faults_from_spec(args.faults))
     make_sim = None
     if args.transport == "lcm":
         from drake_skills.sim.lcm_demo import LcmCollaborationSim
@@ -104,6 +137,8 @@ def run(args: argparse.Namespace) -> int:
     summary, library = run_collaboration(cfg, data.demos, workspace, meshcat=meshcat, on_trial=on_trial,
                                          make_sim=make_sim)
     summary.wall_seconds = time.perf_counter() - t0
+    if args.faults is not None:
+        _compare_without_faults(cfg, data.demos, workspace, summary, make_sim, args.out)
     acc = summary.accuracy_after_teaching
     print(f"{summary.trials} trials: right {summary.right}, WRONG skill executed {summary.wrong}, asked "
           f"{summary.asked} (unknown {summary.unknown}, undecided at rest {summary.undecided_at_rest}); "

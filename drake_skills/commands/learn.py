@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import time
 from pathlib import Path
@@ -22,11 +23,17 @@ def register(sub) -> None:
                     "or calibration.npz in its folder or above it (up to DEMOS_DIR), or --workspace. The first "
                     "demonstration (or --library) declares the dimensions; a file with other columns is an "
                     "error and nothing is written. Writes OUT/library.npz, OUT/library.tasks.json (the task "
-                    "labels of the components, for `recognize`) and OUT/learn.json (what happened).")
+                    "labels of the components, for `recognize`) and OUT/learn.json (what happened). An existing "
+                    "OUT/library.npz is replaced only if it is the --library being extended (then the update "
+                    "holds the file's lock, so several learns may extend one library at once and none loses "
+                    "demonstrations) or with --force.")
     p.add_argument("demos_dir", type=Path, metavar="DEMOS_DIR", help="folder of demonstrations")
     add_out(p, "learn", "library.npz, library.tasks.json and learn.json")
     p.add_argument("--library", type=Path, default=None, metavar="LIB",
-                   help="existing library file to extend (default: start empty); it is not modified")
+                   help="existing library file to extend (default: start empty); it is not modified unless it "
+                        "is OUT/library.npz, which is then extended in place under its lock")
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing OUT/library.npz that is not the --library being extended")
     add_workspace(p)
     add_config(p)  # for a new library only; an extended one keeps its own
     add_seed(p, 0, "seed of the presentation order (default 0)")
@@ -36,8 +43,10 @@ def register(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from drake_skills import SkillLibrary
-    from drake_skills.commands import WorkspaceFinder, scan_paths, short_name, tasks_file
+    from drake_skills._lock import FileLock, LockTimeout
+    from drake_skills.commands import WorkspaceFinder, scan_paths, tasks_file
     from drake_skills.data.demos import check_layout
+    from drake_skills.library import storage
     from drake_skills.library.labels import TaskVotes
     from drake_skills.sim.config import load_library_config
 
@@ -49,16 +58,16 @@ def run(args: argparse.Namespace) -> int:
     demos = [d for d, _ in found]
     if not demos:
         raise ValueError(f"no demonstrations (.npz or .csv) found under '{args.demos_dir}'")
-    votes = TaskVotes()
+    out_file = storage.library_path(args.out / LIBRARY_FILE)
+    in_place = args.library is not None and storage.library_path(args.library).resolve() == out_file.resolve()
+    _refuse_to_replace(out_file, in_place, args.force)
     if args.library is not None:
         if args.config is not None:
             raise ValueError("--config applies to a new library only; the existing library keeps its own")
         lib = SkillLibrary.load(args.library)
-        if tasks_file(args.library).is_file():
-            votes = TaskVotes.from_dict(json.loads(tasks_file(args.library).read_text()))
     else:
         lib = SkillLibrary(load_library_config(args.config))
-    # every file is checked before anything is learned: a bad one leaves nothing half done
+    # every file is checked before anything is learned or written: a bad one leaves nothing half done
     if lib.dim_human_ is not None:
         dims, declared = (lib.dim_human_, lib.dim_robot_), f"the library '{args.library}'"
     else:
@@ -67,6 +76,33 @@ def run(args: argparse.Namespace) -> int:
         check_layout(d, *dims, declared)
     find = WorkspaceFinder(args.workspace, args.demos_dir)
     workspaces = [find(d.name) for d in demos]
+    with contextlib.ExitStack() as stack:
+        try:
+            stack.enter_context(FileLock(out_file, timeout=0))
+        except LockTimeout:
+            print(f"waiting for {out_file}: another process is updating it", flush=True)
+            stack.enter_context(FileLock(out_file))
+        # under the lock: the file as it is now (another learn may have extended it while we waited)
+        _refuse_to_replace(out_file, in_place, args.force)
+        if in_place:
+            lib = SkillLibrary.load(out_file)
+        votes = TaskVotes()
+        if args.library is not None and tasks_file(args.library).is_file():
+            votes = TaskVotes.from_dict(json.loads(tasks_file(args.library).read_text()))
+        return _learn(args, lib, votes, demos, workspaces, notes, out_file, in_place)
+
+
+def _refuse_to_replace(out_file: Path, in_place: bool, force: bool) -> None:
+    if out_file.exists() and not in_place and not force:
+        raise FileExistsError(
+            f"'{out_file}' exists and is not the --library being extended: refusing to replace it. Pass "
+            f"--library {out_file} to extend it, --force to replace it, or another --out")
+
+
+def _learn(args, lib, votes, demos, workspaces, notes, out_file: Path, in_place: bool) -> int:
+    """Fold the demonstrations into ``lib`` and write the library, its labels and learn.json (``out_file`` locked)."""
+    from drake_skills.commands import short_name, tasks_file
+
     sources = sorted({str(f) for _, f in workspaces if f is not None})
     raw = sum(ws is None for ws, _ in workspaces)
     print(f"learning from {len(demos)} demonstrations in {args.demos_dir}; library starts with "
@@ -90,7 +126,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"[{n:4d}/{len(demos)}] {short_name(d.name, args.demos_dir)}: {what}{extra}  (K={lib.n_components})",
               flush=True)
     args.out.mkdir(parents=True, exist_ok=True)
-    path = lib.save(args.out / LIBRARY_FILE)
+    # in place, the generation check of save confirms no one wrote the file meanwhile (we hold its lock)
+    path = lib.save(out_file, expected_generation=lib.generation if in_place else None)
     labels = tasks_file(path)
     labels.write_text(json.dumps(votes.to_dict(), indent=1) + "\n")
     summary = {"library": str(path), "tasks": str(labels), "demos_dir": str(args.demos_dir),

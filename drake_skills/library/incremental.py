@@ -55,7 +55,6 @@ from __future__ import annotations
 
 import logging
 import warnings
-from pathlib import Path
 from typing import Sequence
 
 import numpy as np
@@ -63,22 +62,23 @@ import numpy as np
 from drake_skills._checks import as_finite_array
 from drake_skills.data.demonstration import Demonstration
 from drake_skills.data.workspace import Workspace
-from drake_skills.library import storage
 from drake_skills.library.algorithm import ComponentModel, Components, Metric, fold_in, gating_metric
 from drake_skills.library.config import NOVELTY_TESTS, LibraryConfig, WorkspaceBounds
 from drake_skills.library.guards import UNITS_RANGE, data_warning
 from drake_skills.library.novelty import novelty_rule
+from drake_skills.library.files import FileMixin
 from drake_skills.library.recognition import RecognitionMixin, _Path
 from drake_skills.library.scale import SharedScale, shared_covariance
 from drake_skills.library.state import ComponentState, LibraryState
+from drake_skills.library.storage import LibraryChangedError
 from drake_skills.library.views import (Component, DataWarning, Recognition, UnitsWarning, UnknownSkillError,
                                         Update, WorkspaceWarning)
 from drake_skills.promp.basis import ridge_weights
 from drake_skills.promp.interaction import InteractionProMP
 from drake_skills.promp.preprocessing import arc_length, resample_in_time
 
-__all__ = ["Component", "ComponentState", "DataWarning", "LibraryConfig", "LibraryState", "NOVELTY_TESTS",
-           "Recognition", "SkillLibrary", "UNITS_RANGE", "UnitsWarning", "UnknownSkillError", "Update",
+__all__ = ["Component", "ComponentState", "DataWarning", "LibraryChangedError", "LibraryConfig", "LibraryState",
+           "NOVELTY_TESTS", "Recognition", "SkillLibrary", "UNITS_RANGE", "UnitsWarning", "UnknownSkillError", "Update",
            "WorkspaceBounds", "WorkspaceWarning"]
 
 log = logging.getLogger(__name__)
@@ -91,7 +91,7 @@ def _read_only(a: np.ndarray) -> np.ndarray:
     return v
 
 
-class SkillLibrary(RecognitionMixin):
+class SkillLibrary(RecognitionMixin, FileMixin):
     """An open-ended library of collaborative skills learned one demonstration at a time.
 
     Parameters
@@ -114,6 +114,7 @@ class SkillLibrary(RecognitionMixin):
         if not isinstance(self.config, LibraryConfig):
             raise ValueError(f"config must be a LibraryConfig, got {type(self.config).__name__}")
         self._rule = novelty_rule(self.config)
+        self._origin: tuple[str, int] | None = None  # (file, generation) last loaded from or saved to
         self._reset()
 
     def _reset(self):
@@ -481,17 +482,3 @@ class SkillLibrary(RecognitionMixin):
             self.dim_human_, self.dim_robot_ = demo.dim_human, demo.dim_robot
         return Update(n, step.recognized, step.created, step.updated, step.merged, step.deleted,
                       step.responsibilities, step.split, step.subcluster)
-
-    # ---------------------------------------------------------------- storage
-    def save(self, path) -> Path:
-        """Write the library atomically to ``path`` (.npz, no pickle); returns the path written.
-
-        ``.npz`` is appended to a path without it.
-        """
-        return storage.save_state(self.state(), path)
-
-    @classmethod
-    def load(cls, path) -> "SkillLibrary":
-        """Read a library written by :meth:`save`; corrupt or foreign files raise ValueError."""
-        return cls.from_state(storage.load_state(path))
-

@@ -7,7 +7,7 @@ knows the state type and the file format only, never the library class.
 Layout (schema version 3):
 
 * ``metadata``: a 0-d unicode array holding JSON: ``{"format": "drake-skills
-  library", "schema_version": 3, "config": {...}, "dim_human", "dim_robot",
+  library", "schema_version": 3, "generation", "config": {...}, "dim_human", "dim_robot",
   "next_id", "n_seen", "history": [...], "trained_with_workspace": true, false or
   null (optional: files written before it are read as null, unknown), "scale": {"n", "dof"}, "components":
   [{"id", "age", "support", "duration", "path_length", "rank", "subclusters":
@@ -21,6 +21,12 @@ The scatter is stored as factors (a few columns per demonstration), so a library
 1000 components of 3 demonstrations each and 150 weights takes ~7 MB, where dense
 covariances would take 180 MB.
 
+``generation`` counts the saves of the file (1 for the first, +1 for each save over
+it; files written before it existed count as 0): ``SkillLibrary.save`` refuses to
+overwrite a file whose generation changed since the library was loaded from it, so a
+second writer's work is never silently replaced (:func:`file_generation` reads it
+without reading the arrays).
+
 Files of schema 1 and 2 (dense covariances, the fixed ``Sigma_init`` scale) still
 load: their settings of the retired fixed scale are dropped, each component's
 covariance becomes its scatter (``s_k C_k``), and the shared scale is estimated from
@@ -31,19 +37,28 @@ never leaves a half-written library. Loading uses ``allow_pickle=False``, reads 
 array's header first and checks that the file holds the bytes it declares and that its
 shape is the one the metadata says, before reading any array (a crafted file cannot
 make it allocate more than its own size, and the metadata is bounded), checks
-finiteness and consistency, and names the file in every error.
+finiteness and the consistency of the dimensions (every array against ``dim_human``,
+``dim_robot`` and the basis sizes; the workspace against ``dim_human``; the shared
+scale's count, degrees of freedom and pooled scatter against the components; each
+component's sub-clusters against it), refuses before reading any array a file whose
+metadata declares more than :data:`MAX_ARRAY_BYTES` of arrays, and names the file and
+the reason in every error.
 """
 from __future__ import annotations
 
 import json
 import logging
+import math
+import os
 import zipfile
 from pathlib import Path
 
 import numpy as np
 
 from drake_skills._io import atomic_write
+from drake_skills._lock import FileLock
 from drake_skills.library.config import RETIRED_FIELDS, LibraryConfig
+from drake_skills.library.invariants import invariant_violations
 from drake_skills.library.scale import Cluster, SharedScale
 from drake_skills.library.state import ComponentState, LibraryState
 
@@ -55,9 +70,24 @@ SCHEMA_VERSION = 3
 MAX_METADATA_CHARS = 64 * 2 ** 20
 #: Largest number of weights per demonstration a file may declare.
 MAX_WEIGHTS = 10_000
+#: Largest total size of the arrays a file may declare (bytes): ~ 100x the largest library we know of.
+MAX_ARRAY_BYTES = 2 ** 30
+#: Relative tolerance of the consistency checks between the shared scale and the components.
+CONSISTENCY_RTOL = 1e-6
+
 #: Largest ratio of an array's bytes to its compressed bytes accepted from a compressed
 #: entry (``save`` stores arrays uncompressed; numbers rarely compress beyond a few times).
 MAX_EXPANSION = 64
+
+
+class LibraryChangedError(ValueError):
+    """The library file was saved by someone else since this library was loaded from it."""
+
+
+def library_path(path) -> Path:
+    """``path`` as :func:`save_state` writes it (``.npz`` appended if missing)."""
+    path = Path(path)
+    return path if path.suffix == ".npz" else path.with_name(path.name + ".npz")
 
 
 def _cluster_meta(cl: Cluster) -> dict:
@@ -65,19 +95,23 @@ def _cluster_meta(cl: Cluster) -> dict:
             "rank": int(cl.factor.shape[1])}
 
 
-def save_state(state: LibraryState, path) -> Path:
-    """Atomically write ``state`` to ``path`` (``.npz`` is appended if missing); returns the path written."""
+def save_state(state: LibraryState, path, *, generation: int = 1) -> Path:
+    """Atomically write ``state`` to ``path`` (``.npz`` is appended if missing); returns the path written.
+
+    ``generation`` is recorded in the metadata (see the module docstring); this
+    function neither locks nor checks it (``SkillLibrary.save`` does both).
+    """
     if not isinstance(state, LibraryState):
         raise ValueError(f"save_state takes a LibraryState, got {type(state).__name__}")
-    path = Path(path)
-    if path.suffix != ".npz":
-        path = path.with_name(path.name + ".npz")
+    _int(generation, "generation")
+    path = library_path(path)
     comps = state.components
     d = state.n_weights
     sc = state.scale if state.scale is not None else SharedScale.empty(d)
     meta = {
         "format": FORMAT,
         "schema_version": SCHEMA_VERSION,
+        "generation": int(generation),
         "config": state.config.dict(),
         "dim_human": state.dim_human,
         "dim_robot": state.dim_robot,
@@ -109,6 +143,67 @@ def save_state(state: LibraryState, path) -> Path:
     }
     atomic_write(path, lambda f: np.savez(f, **arrays), fsync=True)
     return path
+
+
+def save_checked(state: LibraryState, path, expected_generation: int | None, *,
+                 timeout: float | None = None) -> tuple[Path, int]:
+    """Save ``state`` under the file's lock if its generation is still ``expected_generation``.
+
+    Parameters
+    ----------
+    state : LibraryState
+    path : path-like
+        ``.npz`` is appended if missing.
+    expected_generation : int or None
+        The generation the caller last saw in the file; None saves whatever the
+        file holds now (an unreadable file is then replaced too).
+    timeout : float, optional
+        Seconds to wait for the lock (None: as long as it takes).
+
+    Returns
+    -------
+    path : Path
+        The file written.
+    generation : int
+        Its new generation (the file's previous generation + 1).
+
+    Raises
+    ------
+    LibraryChangedError
+        If the file's generation is not ``expected_generation`` (another process
+        saved it, or it was removed); nothing is written.
+    """
+    path = library_path(path)
+    with FileLock(path, timeout=timeout):
+        try:
+            current = file_generation(path)
+        except ValueError as exc:
+            if expected_generation is not None:
+                raise LibraryChangedError(f"library file '{path}' changed since it was loaded and cannot be read "
+                                          f"now ({exc}); nothing was saved") from None
+            current = None
+        if expected_generation is not None and current != expected_generation:
+            now = "was removed" if current is None else f"is at generation {current}"
+            raise LibraryChangedError(
+                f"library file '{path}' changed since this library was loaded from it (loaded at generation "
+                f"{expected_generation}, the file {now}): another process saved it, and saving now would "
+                f"silently drop its demonstrations. Nothing was saved: load the file again and fold your "
+                f"demonstrations in (SkillLibrary.update_file does this under the file's lock), or pass "
+                f"expected_generation=None to overwrite it")
+        generation = (current or 0) + 1
+        save_state(state, path, generation=generation)
+        _remove_stale_temporaries(path)
+    return path, generation
+
+
+def _remove_stale_temporaries(path: Path) -> None:
+    """Temporary files of :func:`atomic_write` left by a writer killed mid-save (we hold the lock: none is live)."""
+    for tmp in path.parent.glob(f".{path.name}.*.tmp"):
+        try:
+            tmp.unlink()
+            log.info("removed %s, left by a save that was interrupted", tmp)
+        except OSError:  # pragma: no cover - removed meanwhile, or not ours to remove
+            pass
 
 
 def _headers(z: zipfile.ZipFile, where: str, file_bytes: int) -> dict:
@@ -144,15 +239,18 @@ def _headers(z: zipfile.ZipFile, where: str, file_bytes: int) -> dict:
     return out
 
 
-def _read(path: Path, where: str):
-    """The JSON metadata, the schema version and an accessor for the arrays of a library file."""
-    if not path.exists():
-        raise FileNotFoundError(f"{where} does not exist")
-    if not zipfile.is_zipfile(path):
+def _read(f, where: str):
+    """The JSON metadata, the schema version and an accessor for the arrays of a library file open as ``f``.
+
+    Everything is read through ``f`` (the accessor too: call it before ``f`` is closed),
+    so a save that replaces the file meanwhile (a new inode) cannot mix two versions.
+    """
+    if not zipfile.is_zipfile(f):
         raise ValueError(f"{where} is truncated or not an .npz file")
     try:
-        with zipfile.ZipFile(path) as z:
-            headers = _headers(z, where, path.stat().st_size)
+        f.seek(0)
+        with zipfile.ZipFile(f) as z:
+            headers = _headers(z, where, os.fstat(f.fileno()).st_size)
         if "metadata" not in headers:
             raise ValueError(f"{where} is not a drake-skills library (missing ['metadata'])")
         shape, dtype = headers["metadata"]
@@ -161,7 +259,8 @@ def _read(path: Path, where: str):
         if dtype.itemsize // 4 > MAX_METADATA_CHARS:
             raise ValueError(f"{where}: metadata entry of {dtype.itemsize // 4} characters is larger than "
                              f"{MAX_METADATA_CHARS}")
-        with np.load(path, allow_pickle=False) as z:
+        f.seek(0)
+        with np.load(f, allow_pickle=False) as z:
             meta_raw = z["metadata"]
     except ValueError as exc:
         if str(exc).startswith(where):
@@ -190,6 +289,11 @@ def _read(path: Path, where: str):
         missing = sorted(set(expected) - set(headers))
         if missing:
             raise ValueError(f"{where} is not a drake-skills library (missing {missing})")
+        total = 8 * sum(math.prod(want) for want in expected.values())
+        if total > MAX_ARRAY_BYTES:
+            raise ValueError(f"{where}: the metadata declares {total / 2 ** 20:.0f} MiB of arrays, more than "
+                             f"the {MAX_ARRAY_BYTES / 2 ** 20:.0f} MiB a library file may hold "
+                             f"(storage.MAX_ARRAY_BYTES); refusing to read it")
         for name, want in expected.items():
             shape, dtype = headers[name]
             if shape != tuple(want):
@@ -197,7 +301,8 @@ def _read(path: Path, where: str):
             if dtype.kind not in "fiu":
                 raise ValueError(f"{where}: array {name!r} is not numeric ({dtype})")
         try:
-            with np.load(path, allow_pickle=False) as z:
+            f.seek(0)
+            with np.load(f, allow_pickle=False) as z:
                 out = {name: np.array(z[name], dtype=float) for name in expected}
         except (zipfile.BadZipFile, OSError, EOFError, KeyError, ValueError) as exc:
             raise ValueError(f"{where} is truncated or damaged ({type(exc).__name__}: {exc})") from None
@@ -224,11 +329,47 @@ def load_state(path) -> LibraryState:
         If ``path`` does not exist.
     ValueError
         If the file is truncated, not a drake-skills library, of a newer schema
-        version, or inconsistent; the message names the file.
+        version, or inconsistent; the message names the file and the reason.
+    """
+    return load_versioned(path)[0]
+
+
+def _generation(meta: dict, where: str) -> int:
+    try:
+        return _int(meta.get("generation", 0), "generation")
+    except ValueError as exc:
+        raise ValueError(f"{where}: bad metadata ({exc})") from None
+
+
+def file_generation(path) -> int | None:
+    """The generation of the library file at ``path`` (None if there is no file), from its metadata alone.
+
+    Raises
+    ------
+    ValueError
+        If the file exists but is not a readable drake-skills library.
     """
     path = Path(path)
+    if not path.exists():
+        return None
     where = f"library file '{path}'"
-    meta, version, arrays = _read(path, where)
+    with open(path, "rb") as f:
+        return _generation(_read(f, where)[0], where)
+
+
+def load_versioned(path) -> tuple[LibraryState, int]:
+    """:func:`load_state` and the file's generation (0 for a file written before generations)."""
+    path = Path(path)
+    where = f"library file '{path}'"
+    if not path.exists():
+        raise FileNotFoundError(f"{where} does not exist")
+    with open(path, "rb") as f:  # one handle for the whole load
+        meta, version, arrays = _read(f, where)
+        generation = _generation(meta, where)
+        return _state_of(meta, version, arrays, where), generation
+
+
+def _state_of(meta: dict, version: int, arrays, where: str) -> LibraryState:
     try:
         cfg_meta = dict(meta["config"])
         if version < 2:  # written before the arc length ignored noise below a tolerance
@@ -260,6 +401,9 @@ def load_state(path) -> LibraryState:
             return LibraryState(config, None, None, next_id, n_seen, (), history, None, with_ws)
         except ValueError as exc:
             raise ValueError(f"{where}: {exc}") from None
+    ws = config.workspace
+    if ws is not None and ws.dim != dims[0]:
+        raise ValueError(f"{where} is inconsistent: its workspace is {ws.dim}-D but dim_human is {dims[0]}")
     d = dims[0] * config.n_basis_human + dims[1] * config.n_basis_robot
     if d > MAX_WEIGHTS:
         raise ValueError(f"{where}: metadata declares {d} weights per demonstration (more than {MAX_WEIGHTS})")
@@ -303,10 +447,20 @@ def load_state(path) -> LibraryState:
         raise ValueError(f"{where}: component metadata is bad ({type(exc).__name__}: {exc})") from None
     if not np.allclose(scale.pooled, scale.pooled.T, rtol=1e-9, atol=1e-12):
         raise ValueError(f"{where}: the pooled scatter is not symmetric")
+    return _consistent(where, config, dims[0], dims[1], next_id, n_seen, tuple(comps), history, scale, with_ws)
+
+
+def _consistent(where: str, *args) -> LibraryState:
+    """``LibraryState(*args)``, checked against :func:`~drake_skills.library.invariants.invariant_violations`."""
     try:
-        return LibraryState(config, dims[0], dims[1], next_id, n_seen, tuple(comps), history, scale, with_ws)
+        state = LibraryState(*args)
     except ValueError as exc:
         raise ValueError(f"{where}: {exc}") from None
+    problems = invariant_violations(state, rtol=CONSISTENCY_RTOL)
+    if problems:
+        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+        raise ValueError(f"{where} is inconsistent: {problems[0]}{more}")
+    return state
 
 
 def _load_dense(where, config, dims, next_id, n_seen, history, comps_meta, arrays, d) -> LibraryState:
@@ -340,7 +494,4 @@ def _load_dense(where, config, dims, next_id, n_seen, history, comps_meta, array
         scale = SharedScale.empty(d)
     log.warning("%s has schema version < 3 (fixed Sigma_init scale): its shared scale is estimated from the "
                 "stored components, and phase estimates need new demonstrations (no path lengths stored)", where)
-    try:
-        return LibraryState(config, dims[0], dims[1], next_id, n_seen, tuple(comps), history, scale)
-    except ValueError as exc:
-        raise ValueError(f"{where}: {exc}") from None
+    return _consistent(where, config, dims[0], dims[1], next_id, n_seen, tuple(comps), history, scale)

@@ -25,6 +25,8 @@ from drake_skills._checks import validated
 from drake_skills.library.config import LibraryConfig
 from drake_skills.sim.lcm_config import LcmConfig
 from drake_skills.systems.decision_rule import DecisionRule
+from drake_skills.systems.normalizer import SampleRule
+from drake_skills.systems.wrist_faults import TrackerFaults
 
 
 @dataclass
@@ -91,10 +93,15 @@ class SimConfig:
     z_factor: float = 0.9
     # the LCM interface (drake-skills demo --transport lcm, drake-skills control)
     lcm: LcmConfig = field(default_factory=LcmConfig)
+    # which wrist samples the controller accepts (drake_skills.systems.normalizer)
+    wrist: SampleRule = field(default_factory=SampleRule)
+    # a misbehaving simulated wrist tracker (drake_skills.systems.wrist_faults; default: perfect)
+    faults: TrackerFaults = field(default_factory=TrackerFaults)
 
     def __post_init__(self):
         for name, kind in (("library", LibraryConfig), ("decision", DecisionRule), ("controller", ControllerConfig),
-                           ("meshcat", MeshcatConfig), ("lcm", LcmConfig)):
+                           ("meshcat", MeshcatConfig), ("lcm", LcmConfig), ("wrist", SampleRule),
+                           ("faults", TrackerFaults)):
             if not isinstance(getattr(self, name), kind):
                 raise ValueError(f"SimConfig.{name} must be a {kind.__name__}, "
                                  f"got {type(getattr(self, name)).__name__}")

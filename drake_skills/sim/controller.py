@@ -55,6 +55,8 @@ class ControllerHandles:
     controller: InverseDynamicsController | None
     #: p_WH (3,) in metres, world frame.
     wrist_inputs: tuple[InputPort, ...]
+    #: When each wrist sample was measured (1,), s (empty unless built with ``timestamped_wrist``).
+    wrist_time_inputs: tuple[InputPort, ...]
     #: [q; v] (14,) of the IIWA7, radians and rad/s.
     measured_state_inputs: tuple[InputPort, ...]
     #: [q; v] (14,) the robot should follow.
@@ -74,10 +76,15 @@ class ControllerHandles:
         systems = (self.normalizer, self.gating, self.conditioner, self.trajectory_source, self.trial_monitor)
         return systems + ((self.controller,) if self.controller is not None else ())
 
-    def connect_wrist(self, builder: DiagramBuilder, port: OutputPort) -> None:
-        """Feed the wrist position p_WH (3,) from ``port``."""
+    def connect_wrist(self, builder: DiagramBuilder, port: OutputPort, time_port: OutputPort | None = None) -> None:
+        """Feed the wrist position p_WH (3,) from ``port`` (and its measurement time from ``time_port``)."""
         for p in self.wrist_inputs:
             builder.Connect(port, p)
+        if bool(self.wrist_time_inputs) != (time_port is not None):
+            raise ValueError("connect_wrist: a time port is needed exactly when the controller was built with "
+                             "timestamped_wrist=True")
+        for p in self.wrist_time_inputs:
+            builder.Connect(time_port, p)
 
     def connect_measured_state(self, builder: DiagramBuilder, port: OutputPort) -> None:
         """Feed the measured robot state [q; v] (14,) from ``port``."""
@@ -86,7 +93,8 @@ class ControllerHandles:
 
 
 def add_controller(builder: DiagramBuilder, config: SimConfig, *, library: SkillLibrary, workspace: Workspace,
-                   X_WB: RigidTransform, inverse_dynamics: bool = True) -> ControllerHandles:
+                   X_WB: RigidTransform, inverse_dynamics: bool = True,
+                   timestamped_wrist: bool = False) -> ControllerHandles:
     """Add the skill-library controller to ``builder`` and wire it inside.
 
     Parameters
@@ -103,6 +111,9 @@ def add_controller(builder: DiagramBuilder, config: SimConfig, *, library: Skill
     inverse_dynamics : bool
         Add the inverse-dynamics controller (joint torques out); False for a robot
         that takes position commands and runs its own joint controller.
+    timestamped_wrist : bool
+        The wrist comes with the time each sample was measured (stale samples are
+        then rejected, see :mod:`drake_skills.systems.normalizer`).
 
     Returns
     -------
@@ -119,7 +130,8 @@ def add_controller(builder: DiagramBuilder, config: SimConfig, *, library: Skill
         controller.set_name("inverse_dynamics_controller")
 
     lower, upper = IIWA7_JOINT_LIMITS
-    normalizer = builder.AddSystem(WorkspaceNormalizer(workspace, subtract_start=library.config.subtract_start))
+    normalizer = builder.AddSystem(WorkspaceNormalizer(workspace, subtract_start=library.config.subtract_start,
+                                                       rule=config.wrist, timestamped=timestamped_wrist))
     gating = builder.AddSystem(SkillGating(library, config.decision, dim=workspace.dim))
     conditioner = builder.AddSystem(InteractionProMPConditioner(library, n_steps=config.n_steps))
     source = builder.AddSystem(JointTrajectorySource(lower, upper, HOME_Q, IIWA7_VELOCITY_LIMITS))
@@ -144,7 +156,9 @@ def add_controller(builder: DiagramBuilder, config: SimConfig, *, library: Skill
         measured += (controller.get_input_port_estimated_state(),)
         actuation = controller.get_output_port_control()
     return ControllerHandles(controller_plant, normalizer, gating, conditioner, source, monitor, controller,
-                             wrist_inputs=(normalizer.GetInputPort("human_wrist"),), measured_state_inputs=measured,
+                             wrist_inputs=(normalizer.GetInputPort("human_wrist"),),
+                             wrist_time_inputs=(normalizer.GetInputPort("wrist_time"),) if timestamped_wrist else (),
+                             measured_state_inputs=measured,
                              desired_state=source.GetOutputPort("desired_state"),
                              desired_acceleration=source.GetOutputPort("desired_acceleration"),
                              actuation=actuation, decision=gating.GetOutputPort("decision"),

@@ -235,8 +235,27 @@ class CollaborationSim:
         h, ctx = self.handles, self.context
         self.diagram.SetDefaultContext(ctx)
         ctx.SetTime(t0)
-        h.wrist_source.SetTrial(h.wrist_source.GetMyContextFromRoot(ctx), WristTrial(demo.t, demo.human, t0))
+        self._set_wrist(demo, t0)
         self.simulator.Initialize()
+
+    def _set_wrist(self, demo: Demonstration, t0: float) -> None:
+        """The wrist source replays ``demo`` from ``t0``, through ``config.faults``'s tracker if any."""
+        h, ctx = self.handles, self.context
+        trial = WristTrial(demo.t, demo.human, t0)
+        source_ctx = h.wrist_source.GetMyContextFromRoot(ctx)
+        h.wrist_source.SetTrial(source_ctx, trial)
+        faults = self.config.faults
+        self._n_started = getattr(self, "_n_started", 0) + 1
+        if faults.any:  # the same faults for the same seed and trial number
+            from drake_skills.systems.wrist_faults import tracker_feed
+
+            rng = np.random.default_rng([self.config.seed, self._n_started])
+            h.wrist_source.SetFeed(source_ctx, tracker_feed(trial, faults, rng, margin=self._feed_margin()))
+
+    def _feed_margin(self) -> float:
+        """Seconds of tracker feed after a demonstration's end (the longest a trial can go on)."""
+        cfg = self.config
+        return cfg.decision.timeout + cfg.unknown_hold_time + cfg.settle_time + 1.0
 
     # ------------------------------------------------------------ helpers
     def flange_position(self, q: np.ndarray) -> np.ndarray:

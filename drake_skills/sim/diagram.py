@@ -162,8 +162,9 @@ def build_diagram(config: SimConfig, *, library: SkillLibrary, workspace: Worksp
     plant, scene_graph, iiwa, scene = add_salad_plant(builder, config)
     wrist = builder.AddSystem(HumanWristSource())
     wrist.set_name("human_wrist_source")
-    ctrl = add_controller(builder, config, library=library, workspace=workspace, X_WB=scene.robot_base.transform())
-    ctrl.connect_wrist(builder, wrist.GetOutputPort("human_wrist"))
+    ctrl = add_controller(builder, config, library=library, workspace=workspace, X_WB=scene.robot_base.transform(),
+                          timestamped_wrist=True)
+    ctrl.connect_wrist(builder, wrist.GetOutputPort("human_wrist"), wrist.GetOutputPort("wrist_time"))
     ctrl.connect_measured_state(builder, plant.get_state_output_port(iiwa))
     builder.Connect(ctrl.actuation, plant.get_actuation_input_port(iiwa))
 

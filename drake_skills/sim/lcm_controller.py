@@ -102,7 +102,8 @@ def add_lcm_controller(builder: DiagramBuilder, config: SimConfig, *, library: S
     initializing without a status is an error, never a command to zero.
     """
     cfg = config.lcm
-    ctrl = add_controller(builder, config, library=library, workspace=workspace, X_WB=X_WB, inverse_dynamics=False)
+    ctrl = add_controller(builder, config, library=library, workspace=workspace, X_WB=X_WB, inverse_dynamics=False,
+                          timestamped_wrist=True)
     status_sub = builder.AddSystem(LcmSubscriberSystem.Make(cfg.status_channel, lcmt_iiwa_status, lcm,
                                                             use_cpp_serializer=True))
     status_sub.set_name("controller_status_subscriber")
@@ -126,7 +127,7 @@ def add_lcm_controller(builder: DiagramBuilder, config: SimConfig, *, library: S
         builder.Connect(status.GetOutputPort(port), guard.GetInputPort(port))
     builder.Connect(status.GetOutputPort("time_measured"), guard.GetInputPort("status_time"))
     builder.Connect(wrist_sub.get_output_port(), receiver.GetInputPort("lcmt_drake_signal"))
-    ctrl.connect_wrist(builder, receiver.GetOutputPort("human_wrist"))
+    ctrl.connect_wrist(builder, receiver.GetOutputPort("human_wrist"), receiver.GetOutputPort("wrist_time"))
     ctrl.connect_measured_state(builder, guard.GetOutputPort("measured_state"))
     builder.Connect(ctrl.desired_state, guard.GetInputPort("desired_state"))
     builder.Connect(guard.GetOutputPort("position"), sender.GetInputPort("position"))

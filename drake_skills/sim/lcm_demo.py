@@ -42,7 +42,6 @@ from drake_skills.sim.lcm_controller import LcmControllerHandles, add_lcm_contro
 from drake_skills.sim.lcm_link import LcmLink
 from drake_skills.sim.lcm_station import StationChannels, StationHandles, add_station, hold_command
 from drake_skills.sim.models import FLANGE_FRAME, HOME_Q
-from drake_skills.systems.wrist_source import WristTrial
 
 #: Suffix of the station's channel names when links stand between it and the controller.
 STATION_SUFFIX = "_STATION"
@@ -134,11 +133,11 @@ class LcmCollaborationSim(CollaborationSim):
         return diagram, handles
 
     def _start_trial(self, demo: Demonstration, t0: float) -> None:
-        h, ctx, parts = self.handles, self.context, self.parts
+        ctx, parts = self.context, self.parts
         station = parts.station
         self.diagram.SetDefaultContext(ctx)  # the world and the controller start over, as in the direct Diagram
         ctx.SetTime(t0)
-        h.wrist_source.SetTrial(h.wrist_source.GetMyContextFromRoot(ctx), WristTrial(demo.t, demo.human, t0))
+        self._set_wrist(demo, t0)  # with config.faults, the station's tracker misbehaves
         for publisher in (station.status_publisher, station.wrist_publisher):
             publisher.ForcedPublish(publisher.GetMyContextFromRoot(ctx))
         parts.lcm.Publish(station.channels.command, hold_command(HOME_Q, t0).encode())

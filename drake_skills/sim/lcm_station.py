@@ -8,7 +8,8 @@
     IIWA_STATUS ◀── LcmPublisherSystem ◀── IiwaStatusSender ◀──────────────────────────┘
                     (lcmt_iiwa_status, every status_period)
     DRAKE_SKILLS_WRIST ◀── LcmPublisherSystem ◀── WristSignalSender ◀── HumanWristSource (replayed person)
-                    (lcmt_drake_signal, every wrist_period)
+                    (lcmt_drake_signal, every wrist_period)      (position, measurement time; with
+                                                                  SimConfig.faults: a faulty tracker's)
 
 This is Drake's ``BuildIiwaControl`` wiring (the same pydrake systems, the same
 sign convention for torques in the status), built by hand so that the channel
@@ -135,11 +136,12 @@ def add_station(builder: DiagramBuilder, config: SimConfig, lcm: DrakeLcmInterfa
 
     wrist = builder.AddSystem(HumanWristSource())
     wrist.set_name("human_wrist_source")
-    sender = builder.AddSystem(WristSignalSender())
+    sender = builder.AddSystem(WristSignalSender(timestamped=True))  # the stamps and NaN of a faulty tracker
     sender.set_name("wrist_signal_sender")
     wrist_pub = builder.AddSystem(LcmPublisherSystem.Make(channels.wrist, lcmt_drake_signal, lcm, cfg.wrist_period))
     wrist_pub.set_name("station_wrist_publisher")
     builder.Connect(wrist.GetOutputPort("human_wrist"), sender.GetInputPort("human_wrist"))
+    builder.Connect(wrist.GetOutputPort("wrist_time"), sender.GetInputPort("wrist_time"))
     builder.Connect(sender.GetOutputPort("lcmt_drake_signal"), wrist_pub.get_input_port())
     return StationHandles(plant, scene_graph, iiwa, scene, driver_plant, wrist, command_sub, receiver, driver,
                           status_pub, wrist_pub, channels)

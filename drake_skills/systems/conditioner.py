@@ -136,11 +136,16 @@ def conditioning_step(state: Conditioning, decision: GatingDecision, library: Sk
     * the same component, the person still moving: re-condition every
       :data:`RECONDITION_PERIOD` on the longer prefix (same start, revision + 1);
     * the final decision: condition on the whole motion once (``observed_fraction=1``);
-    * no committed component: no trajectory (the robot holds or stops).
+    * no committed component: no trajectory (the robot holds or stops);
+    * the wrist lost (``decision.status == "lost"``, even after the final decision):
+      the trajectory is withdrawn, so the robot stops and holds.
 
     A failure (bad input, a component deleted meanwhile) is logged and gives a
     :class:`Conditioning` without trajectory, so the robot holds still.
     """
+    if decision.status == "lost" and (state.component is not None or not state.final):
+        log.info("the wrist is lost: the robot holds")  # also after the final answer
+        return Conditioning(None, None, True, decision.motion.n, float(time))
     if state.final:
         return state
     k = decision.component
@@ -220,7 +225,7 @@ class InteractionProMPConditioner(LeafSystem):
 
     def _update(self, context: Context, state: State) -> None:
         old = self.conditioning(context)
-        if old.final:
+        if old.final and old.component is None:
             return
         new = conditioning_step(old, self._decision.Eval(context), self._library, context.get_time(),
                                 n_steps=self._n_steps)

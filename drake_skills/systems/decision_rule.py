@@ -34,9 +34,12 @@ class DecisionRule:
     # consecutive equal answers needed to commit to a skill, to switch to another one, or to
     # give it up ("unknown")
     confirmations: int = 2
+    # no acceptable wrist sample for longer than this (s; NaN, stale, outliers: see
+    # drake_skills.systems.normalizer) and the wrist is lost: the robot holds
+    lost_timeout: float = 0.5
 
     def __post_init__(self):
-        for name in ("min_travel", "still_duration", "still_radius", "timeout", "redecide_period"):
+        for name in ("min_travel", "still_duration", "still_radius", "timeout", "redecide_period", "lost_timeout"):
             v = getattr(self, name)
             if not np.isfinite(v) or v <= 0:
                 raise ValueError(f"DecisionRule.{name} must be positive, got {v!r}")

@@ -91,7 +91,9 @@ class GatingDecision(Shared):
         The motion is over (or timed out) and the last answer is given.
     status : str
         "pending" while observing with nothing committed, "skill" while a skill is
-        committed, and at the end the final answer: "skill", "undecided" or "unknown".
+        committed, and at the end the final answer: "skill", "undecided" or "unknown";
+        "lost" when no acceptable wrist sample came for longer than the rule's
+        ``lost_timeout`` (also after a final answer): the robot holds.
     time : float
         Simulation time the current ``component`` was set (commit or revision) or, when
         final without a skill, of the final answer (NaN before).
@@ -109,6 +111,11 @@ class GatingDecision(Shared):
         Time of the last re-decision (NaN before).
     streak : tuple (answer, count)
         The last answer (a component id, "unknown" or "undecided") and how often in a row.
+    gap_start : float
+        Time of the first of the samples rejected in a row since the last acceptable
+        (finite) one (NaN when the last sample was acceptable).
+    rejected : int
+        Samples skipped because they were not acceptable (NaN from the normalizer's screen).
     """
 
     motion: ObservedMotion = field(default_factory=ObservedMotion)
@@ -123,6 +130,8 @@ class GatingDecision(Shared):
     responsibilities: dict = field(default_factory=dict)
     last_check: float = float("nan")
     streak: tuple = (None, 0)
+    gap_start: float = float("nan")
+    rejected: int = 0
 
     @property
     def decided(self) -> bool:
@@ -228,10 +237,22 @@ def gating_step(state: GatingDecision, time: float, sample: np.ndarray, library:
     (``observed_fraction=1``, the test learning uses) and that answer is final: a
     skill is executed, "unknown" or "undecided" makes the robot hold.
     """
-    if state.final:
+    t = float(time)
+    sample = np.asarray(sample, float)
+    if not np.isfinite(sample).all():  # rejected by the normalizer's screen: bridge the gap, or give up
+        if state.status == "lost":
+            return state
+        gap = t if np.isnan(state.gap_start) else state.gap_start
+        if t - gap > rule.lost_timeout + 1e-9:
+            log.debug("gating: wrist lost at t=%.3f (no acceptable sample since %.3f)", t, gap)
+            return replace(state, component=None, final=True, status="lost", time=t, gap_start=gap,
+                           rejected=state.rejected + 1, revisions=state.revisions + (state.component is not None))
+        return replace(state, gap_start=gap, rejected=state.rejected + 1)
+    if not np.isnan(state.gap_start):
+        state = replace(state, gap_start=float("nan"))  # the gap is bridged
+    if state.final:  # the answer is given; the wrist is still watched (a lost wrist makes the robot hold)
         return state
     motion = state.motion.append(time, sample)
-    t = float(time)
     if should_decide(motion, rule):
         rec = recognize_motion(library, motion, whole=True)
         b = _belief(t, rec)
@@ -327,7 +348,7 @@ class SkillGating(LeafSystem):
 
     def _update(self, context: Context, state: State) -> None:
         old = self.decision(context)
-        if old.final:
+        if old.status == "lost":
             return
         new = gating_step(old, context.get_time(), self._wrist.Eval(context), self._library, self._rule)
         state.get_mutable_abstract_state(self._state).set_value(new)

@@ -1,5 +1,19 @@
-"""``WorkspaceNormalizer``: Eq. (14) applied on line to the observed wrist, once for the whole Diagram."""
+"""``WorkspaceNormalizer``: Eq. (14) applied on line to the observed wrist, once for the whole Diagram.
+
+It is also where a misbehaving tracker's samples are screened (:func:`screen_sample`,
+settings :class:`SampleRule`): a sample is rejected when it is NaN or inf, when it is
+not new (its measurement time has not advanced past the last sample's: a dropout or
+a stale repeat), or when it lies farther from the last accepted sample than the wrist
+can move in the time between them (``min(max_speed * dt, max_jump) + tolerance``: an
+outlier jump; a wrist that jumped for good, e.g. to another person, stays rejected).
+A rejected sample is output as NaN, which the gating skips: the observed motion is
+bridged over the gap (it is resampled by arc length, so a gap costs nothing), and a
+gap longer than the gating's ``lost_timeout`` makes the robot hold
+(:func:`drake_skills.systems.gating.gating_step`).
+"""
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
@@ -8,6 +22,56 @@ from drake_skills.data.workspace import Workspace
 
 #: Period of the start-position latch (s); exact in binary.
 LATCH_PERIOD = 1.0 / 64.0
+
+
+@dataclass
+class SampleRule:
+    """Which wrist samples the controller accepts (``SimConfig.wrist``); metres and seconds."""
+
+    # fastest the wrist is taken to move (m/s); a hand reaching fast peaks near 2 m/s
+    max_speed: float = 3.0
+    # largest distance accepted from the last accepted sample, however long ago (m)
+    max_jump: float = 0.25
+    # allowance for tracker noise on top of the speed bound (m)
+    tolerance: float = 0.02
+
+    def __post_init__(self):
+        for name in ("max_speed", "max_jump", "tolerance"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"SampleRule.{name} must be positive, got {v!r}")
+
+
+def screen_sample(p: np.ndarray, stamp: float, last_good: np.ndarray | None, last_good_stamp: float,
+                  last_seen_stamp: float | None, rule: SampleRule) -> str:
+    """Accept or reject one raw wrist sample; returns "" (accepted) or why not ("nan", "stale", "outlier").
+
+    Parameters
+    ----------
+    p : array, shape (D,)
+        Raw position (m).
+    stamp : float
+        When it was measured (s).
+    last_good : array, shape (D,), or None
+        The last accepted sample (None: none yet).
+    last_good_stamp : float
+        Its stamp.
+    last_seen_stamp : float or None
+        Stamp of the last sample seen, accepted or not (None: none yet).
+    rule : SampleRule or None
+        None: no speed bound (positions not in metres); NaN and stale samples are
+        still rejected.
+    """
+    p = np.asarray(p, float)
+    if not np.isfinite(p).all() or not np.isfinite(stamp):
+        return "nan"
+    if last_seen_stamp is not None and stamp <= last_seen_stamp:
+        return "stale"
+    if last_good is not None and rule is not None:
+        bound = min(rule.max_speed * max(stamp - last_good_stamp, 0.0), rule.max_jump) + rule.tolerance
+        if float(np.linalg.norm(p - last_good)) > bound:
+            return "outlier"
+    return ""
 
 
 def normalized_relative(workspace: Workspace, p: np.ndarray, start_normalized: np.ndarray | None, *,
@@ -45,6 +109,7 @@ class WorkspaceNormalizer(LeafSystem):
         name: WorkspaceNormalizer
         input_ports:
         - human_wrist
+        - wrist_time (only with timestamped=True)
         output_ports:
         - normalized_wrist
 
@@ -61,21 +126,34 @@ class WorkspaceNormalizer(LeafSystem):
         The subject's workspace (from calibration).
     subtract_start : bool
         Subtract the start position (the library's ``config.subtract_start``).
+    rule : SampleRule, optional
+        The speed bound of the screen (see the module docstring), for a wrist in
+        metres (the controller passes ``SimConfig.wrist``); None: NaN and stale
+        samples only. A rejected sample is output as NaN. The screening state
+        advances every 1/64 s (the gating's period).
+    timestamped : bool
+        Read the measurement time of each sample from ``wrist_time`` (1,), s; without
+        it every sample counts as new (no stale detection).
     """
 
-    def __init__(self, workspace: Workspace, *, subtract_start: bool = True):
+    def __init__(self, workspace: Workspace, *, subtract_start: bool = True, rule: SampleRule | None = None,
+                 timestamped: bool = False):
         super().__init__()
         if not isinstance(workspace, Workspace):
             raise ValueError(f"workspace must be a Workspace, got {type(workspace).__name__}")
         self._workspace = workspace
         self._subtract_start = bool(subtract_start)
-        dim = workspace.dim
+        if rule is not None and not isinstance(rule, SampleRule):
+            raise ValueError(f"rule must be a SampleRule or None, got {type(rule).__name__}")
+        self._rule = rule
+        dim = self._dim = workspace.dim
         self._wrist = self.DeclareVectorInputPort("human_wrist", dim)
-        # [start_normalized (dim); latched (1)]
-        self._state = self.DeclareDiscreteState(dim + 1)
+        self._time = self.DeclareVectorInputPort("wrist_time", 1) if timestamped else None
+        # [start_normalized (dim); latched; last good raw sample (dim); its stamp; last seen stamp; has good; has seen]
+        self._state = self.DeclareDiscreteState(2 * dim + 5)
         self.DeclareInitializationDiscreteUpdateEvent(self._latch)
-        self.DeclarePeriodicDiscreteUpdateEvent(LATCH_PERIOD, 0.0, self._latch)
-        self.DeclareForcedDiscreteUpdateEvent(self._latch)
+        self.DeclarePeriodicDiscreteUpdateEvent(LATCH_PERIOD, 0.0, self._update)
+        self.DeclareForcedDiscreteUpdateEvent(self._update)
         self._out = self.DeclareVectorOutputPort("normalized_wrist", dim, self._calc_normalized,
                                                  prerequisites_of_calc={self.all_sources_ticket()})
 
@@ -88,14 +166,53 @@ class WorkspaceNormalizer(LeafSystem):
         x = context.get_discrete_state(self._state).get_value()
         return None if x[-1] < 0.5 else np.array(x[:-1])
 
-    def _latch(self, context: Context, discrete_state: DiscreteValues) -> None:
+    @property
+    def rule(self) -> SampleRule | None:
+        return self._rule
+
+    def _screen(self, context: Context) -> tuple[np.ndarray, float, str]:
+        """The input sample, its stamp and the verdict of :func:`screen_sample` against the state."""
         x = context.get_discrete_state(self._state).get_value()
-        if x[-1] >= 0.5:
+        D = self._dim
+        p = np.asarray(self._wrist.Eval(context), float)
+        stamp = float(self._time.Eval(context)[0]) if self._time is not None else context.get_time()
+        good = np.array(x[D + 1:2 * D + 1]) if x[2 * D + 3] > 0.5 else None
+        seen = float(x[2 * D + 2]) if x[2 * D + 4] > 0.5 and self._time is not None else None  # no stamps: all new
+        return p, stamp, screen_sample(p, stamp, good, float(x[2 * D + 1]), seen, self._rule)
+
+    def start(self, context: Context) -> np.ndarray | None:
+        """The latched normalized start position, or None before the first sample."""
+        x = context.get_discrete_state(self._state).get_value()
+        return None if x[self._dim] < 0.5 else np.array(x[:self._dim])
+
+    def _latch(self, context: Context, discrete_state: DiscreteValues) -> None:
+        """At initialization: latch the start from an acceptable sample (the screening state starts afresh)."""
+        x = np.array(context.get_discrete_state(self._state).get_value())
+        D = self._dim
+        p = np.asarray(self._wrist.Eval(context), float)
+        if x[D] >= 0.5 or not np.isfinite(p).all():
             return
-        p = np.asarray(self._wrist.Eval(context), float).reshape(1, -1)
-        start = self._workspace.normalize(p, subtract_start=False)[0]
-        discrete_state.get_mutable_vector(self._state).SetFromVector(np.concatenate([start, [1.0]]))
+        x[:D] = self._workspace.normalize(p.reshape(1, -1), subtract_start=False)[0]
+        x[D] = 1.0
+        discrete_state.get_mutable_vector(self._state).SetFromVector(x)
+
+    def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
+        x = np.array(context.get_discrete_state(self._state).get_value())
+        D = self._dim
+        p, stamp, verdict = self._screen(context)
+        if np.isfinite(stamp):
+            x[2 * D + 2], x[2 * D + 4] = stamp, 1.0
+        if verdict == "":
+            x[D + 1:2 * D + 1], x[2 * D + 1], x[2 * D + 3] = p, stamp, 1.0
+            if x[D] < 0.5:
+                x[:D] = self._workspace.normalize(p.reshape(1, -1), subtract_start=False)[0]
+                x[D] = 1.0
+        discrete_state.get_mutable_vector(self._state).SetFromVector(x)
 
     def _calc_normalized(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(normalized_relative(self._workspace, self._wrist.Eval(context), self.start(context),
+        p, _, verdict = self._screen(context)
+        if verdict:
+            output.SetFromVector(np.full(self._dim, np.nan))
+            return
+        output.SetFromVector(normalized_relative(self._workspace, p, self.start(context),
                                                  subtract_start=self._subtract_start))

@@ -14,8 +14,13 @@ from pydrake.systems.framework import BasicVector, Context, LeafSystem
 from drake_skills.systems.wrist_sender import WRIST_COORDS
 
 
-def wrist_from_message(msg: lcmt_drake_signal, *, channel: str = "the wrist channel") -> tuple[np.ndarray, float]:
+def wrist_from_message(msg: lcmt_drake_signal, *, channel: str = "the wrist channel",
+                       allow_nan: bool = False) -> tuple[np.ndarray, float]:
     """Position p_WH (3,) in metres and timestamp (s) of a wrist message.
+
+    ``allow_nan=True`` passes non-finite values on (a tracker that lost the marker)
+    instead of raising: the receiver does, and the controller's screen rejects them
+    (:func:`drake_skills.systems.normalizer.screen_sample`).
 
     Raises
     ------
@@ -33,7 +38,7 @@ def wrist_from_message(msg: lcmt_drake_signal, *, channel: str = "the wrist chan
     if tuple(msg.coord) != WRIST_COORDS:
         raise ValueError(f"'{channel}': a wrist message names its values {list(WRIST_COORDS)}, got {list(msg.coord)}")
     p = np.asarray(msg.val, float)
-    if not np.isfinite(p).all():
+    if not allow_nan and not np.isfinite(p).all():
         raise ValueError(f"'{channel}': wrist position is not finite: {p.tolist()}")
     return p, 1e-3 * float(msg.timestamp)
 
@@ -52,7 +57,8 @@ class WristSignalReceiver(LeafSystem):
 
     ``human_wrist`` is p_WH (3,), metres; ``wrist_time`` (1,) the message's
     timestamp in seconds. Evaluating either before a wrist message has been
-    received is an error (see :func:`wrist_from_message`).
+    received is an error (see :func:`wrist_from_message`); a message with NaN or inf
+    values gives them on (the controller's screen rejects the sample).
 
     Parameters
     ----------
@@ -69,7 +75,7 @@ class WristSignalReceiver(LeafSystem):
         self.DeclareVectorOutputPort("wrist_time", 1, self._calc_time, prerequisites_of_calc=deps)
 
     def _calc_wrist(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(wrist_from_message(self._msg.Eval(context), channel=self._channel)[0])
+        output.SetFromVector(wrist_from_message(self._msg.Eval(context), channel=self._channel, allow_nan=True)[0])
 
     def _calc_time(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector([wrist_from_message(self._msg.Eval(context), channel=self._channel)[1]])
+        output.SetFromVector([wrist_from_message(self._msg.Eval(context), channel=self._channel, allow_nan=True)[1]])

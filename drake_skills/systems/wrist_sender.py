@@ -18,8 +18,11 @@ from pydrake.systems.framework import Context, LeafSystem
 WRIST_COORDS = ("wrist_x", "wrist_y", "wrist_z")
 
 
-def wrist_message(p_WH: np.ndarray, time: float) -> lcmt_drake_signal:
+def wrist_message(p_WH: np.ndarray, time: float, *, allow_nan: bool = False) -> lcmt_drake_signal:
     """The wrist message for position ``p_WH`` (3,) in metres at ``time`` (s).
+
+    ``allow_nan=True`` sends NaN on, as a tracker that lost the marker does (the
+    simulated faulty tracker, :mod:`drake_skills.systems.wrist_faults`).
 
     Raises
     ------
@@ -27,7 +30,7 @@ def wrist_message(p_WH: np.ndarray, time: float) -> lcmt_drake_signal:
         If ``p_WH`` is not 3 finite numbers.
     """
     p = np.asarray(p_WH, float).reshape(-1)
-    if p.shape != (3,) or not np.isfinite(p).all():
+    if p.shape != (3,) or not (allow_nan or np.isfinite(p).all()):
         raise ValueError(f"wrist position must be 3 finite numbers, got {p_WH!r}")
     msg = lcmt_drake_signal()
     msg.dim = 3
@@ -45,17 +48,32 @@ class WristSignalSender(LeafSystem):
         name: WristSignalSender
         input_ports:
         - human_wrist
+        - wrist_time (only with timestamped=True)
         output_ports:
         - lcmt_drake_signal
 
-    The timestamp is the context time.
+    The timestamp is the context time, or with ``timestamped=True`` the time the sample
+    was measured (``wrist_time`` (1,), s: the simulated tracker's
+    :class:`~drake_skills.systems.wrist_source.HumanWristSource`, which replays
+    tracker faults); a timestamped sender passes NaN positions on, as a tracker that
+    lost the marker does.
+
+    Parameters
+    ----------
+    timestamped : bool
+        Declare the ``wrist_time`` input and stamp messages with it.
     """
 
-    def __init__(self):
+    def __init__(self, *, timestamped: bool = False):
         super().__init__()
         self._wrist = self.DeclareVectorInputPort("human_wrist", 3)
+        self._time = self.DeclareVectorInputPort("wrist_time", 1) if timestamped else None
         self.DeclareAbstractOutputPort("lcmt_drake_signal", lambda: AbstractValue.Make(lcmt_drake_signal()),
                                        self._calc)
 
     def _calc(self, context: Context, output: AbstractValue) -> None:
-        output.set_value(wrist_message(self._wrist.Eval(context), context.get_time()))
+        if self._time is None:
+            output.set_value(wrist_message(self._wrist.Eval(context), context.get_time()))
+        else:
+            output.set_value(wrist_message(self._wrist.Eval(context), float(self._time.Eval(context)[0]),
+                                           allow_nan=True))

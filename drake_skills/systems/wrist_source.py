@@ -73,9 +73,14 @@ class HumanWristSource(LeafSystem):
         - tracker_wrist (only with passthrough=True)
         output_ports:
         - human_wrist
+        - wrist_time (replay mode only)
 
     In replay mode the trajectory lives in an abstract parameter of the
     context (:meth:`SetTrial`), so one Diagram replays any number of trials.
+    :meth:`SetFeed` replaces the perfect replay by what a faulty tracker delivers
+    (:func:`~drake_skills.systems.wrist_faults.tracker_feed`: dropouts, stale
+    repeats, NaN, outliers, latency); ``wrist_time`` (1,) is the time the delivered
+    sample was measured (the simulation time for the perfect replay).
 
     Parameters
     ----------
@@ -97,7 +102,10 @@ class HumanWristSource(LeafSystem):
             self._tracker = None
             default = trial if trial is not None else WristTrial(np.zeros(1), np.zeros((1, 3)))
             self._trial_index = self.DeclareAbstractParameter(AbstractValue.Make(default))
+            self._feed_index = self.DeclareAbstractParameter(AbstractValue.Make((None,)))
         self._out = self.DeclareVectorOutputPort("human_wrist", 3, self._calc_wrist)
+        if not self._passthrough:
+            self.DeclareVectorOutputPort("wrist_time", 1, self._calc_time)
 
     @property
     def passthrough(self) -> bool:
@@ -111,6 +119,17 @@ class HumanWristSource(LeafSystem):
             raise ValueError(f"trial must be a WristTrial, got {type(trial).__name__}")
         context.get_mutable_abstract_parameter(self._trial_index).set_value(trial)
 
+    def SetFeed(self, context: Context, feed) -> None:
+        """Deliver ``feed`` (a TrackerFeed, or None for the perfect replay of the trial) in ``context``."""
+        if self._passthrough:
+            raise ValueError("HumanWristSource: SetFeed needs replay mode (passthrough=False)")
+        if feed is not None and type(feed).__name__ != "TrackerFeed":  # no import: wrist_faults imports us
+            raise ValueError(f"feed must be a TrackerFeed or None, got {type(feed).__name__}")
+        context.get_mutable_abstract_parameter(self._feed_index).set_value((feed,))
+
+    def _feed(self, context: Context):
+        return context.get_abstract_parameter(self._feed_index).get_value()[0]
+
     def GetTrial(self, context: Context) -> WristTrial:
         """The trial replayed in ``context``."""
         if self._passthrough:
@@ -120,5 +139,13 @@ class HumanWristSource(LeafSystem):
     def _calc_wrist(self, context: Context, output: BasicVector) -> None:
         if self._passthrough:
             output.SetFromVector(self._tracker.Eval(context))
-        else:
+            return
+        feed = self._feed(context)
+        if feed is None:
             output.SetFromVector(wrist_at(self.GetTrial(context), context.get_time()))
+        else:
+            output.SetFromVector(feed.at(context.get_time())[0])
+
+    def _calc_time(self, context: Context, output: BasicVector) -> None:
+        feed = self._feed(context)
+        output.SetFromVector([context.get_time() if feed is None else feed.at(context.get_time())[1]])

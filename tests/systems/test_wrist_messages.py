@@ -44,3 +44,20 @@ def test_sender_and_receiver_systems_carry_the_position():
     receiver.GetInputPort("lcmt_drake_signal").FixValue(rctx, msg)
     np.testing.assert_allclose(receiver.GetOutputPort("human_wrist").Eval(rctx), [0.1, 0.2, 0.3])
     assert receiver.GetOutputPort("wrist_time").Eval(rctx)[0] == 2.0
+
+
+def test_a_timestamped_sender_stamps_the_measurement_time_and_passes_nan_on():
+    """The simulated faulty tracker: the stamp is when the sample was measured; a lost marker is NaN on the bus."""
+    sender, receiver = WristSignalSender(timestamped=True), WristSignalReceiver(channel="W")
+    sctx, rctx = sender.CreateDefaultContext(), receiver.CreateDefaultContext()
+    sctx.SetTime(2.0)
+    sender.GetInputPort("human_wrist").FixValue(sctx, [np.nan, 0.2, 0.3])
+    sender.GetInputPort("wrist_time").FixValue(sctx, [1.95])
+    receiver.GetInputPort("lcmt_drake_signal").FixValue(rctx, sender.GetOutputPort("lcmt_drake_signal").Eval(sctx))
+    assert np.isnan(receiver.GetOutputPort("human_wrist").Eval(rctx)[0])
+    assert receiver.GetOutputPort("wrist_time").Eval(rctx)[0] == pytest.approx(1.95, abs=5e-4)  # ms on the wire
+    plain = WristSignalSender()  # the replayed perfect wrist: NaN there is a bug, refused
+    pctx = plain.CreateDefaultContext()
+    plain.GetInputPort("human_wrist").FixValue(pctx, [np.nan, 0.2, 0.3])
+    with pytest.raises(ValueError, match="3 finite numbers"):
+        plain.GetOutputPort("lcmt_drake_signal").Eval(pctx)

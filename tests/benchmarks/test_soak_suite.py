@@ -1,0 +1,32 @@
+"""The ``soak`` bench suite at a tiny size: it runs, checks the invariants and reports time per update by tenth."""
+from drake_skills.benchmarks import soak
+
+
+def test_soak_suite_reports_zero_violations_and_time_per_update_as_k_grows():
+    rows = soak.run(n_updates=300)
+    by = {r["name"]: r for r in rows}
+    assert by["invariant violations over 300 updates"]["value"] == 0
+    assert "3 full checks" in by["invariant violations over 300 updates"]["notes"]  # after updates 100, 200, 300
+    tenths = [r for r in rows if r["name"].startswith("partial_fit, updates ")]
+    assert len(tenths) == 10 and all(r["unit"] == "ms" and r["value"] > 0 for r in tenths)
+    assert tenths[0]["name"].startswith("partial_fit, updates 1-30, K=")
+
+
+def test_the_soak_counts_a_violation_when_the_library_breaks_an_invariant(monkeypatch):
+    """The soak can fail: a library whose scale miscounts is reported."""
+    import dataclasses
+
+    from drake_skills.library.incremental import SkillLibrary
+
+    real = SkillLibrary.partial_fit
+
+    def miscounting(self, demo, **kw):
+        u = real(self, demo, **kw)
+        if self.n_seen == 150:
+            self._scale = dataclasses.replace(self._scale, n=self._scale.n + 1)
+        return u
+
+    monkeypatch.setattr(SkillLibrary, "partial_fit", miscounting)
+    out = soak.soak(200, 3)
+    assert out["violations"] and out["violations"][0][0] == 200
+    assert "counted 201 demonstrations, the library has seen 200" in out["violations"][0][1]
