@@ -15,12 +15,13 @@ import numpy as np
 from drake_skills.scenario.salad import TASKS, generate_subject
 
 
-def _taught_sim(meshcat, config):
+def _taught_sim(meshcat, config, make_sim=None):
+    """A simulation (``make_sim``, default ``CollaborationSim``) taught 4 demonstrations per task; the held-out trials."""
     from drake_skills.library.incremental import SkillLibrary
     from drake_skills.sim.demo import CollaborationSim
 
     subject = generate_subject(1, n_demos=6, seed=0)
-    sim = CollaborationSim(config, SkillLibrary(config.library), subject.workspace(), meshcat)
+    sim = (make_sim or CollaborationSim)(config, SkillLibrary(config.library), subject.workspace(), meshcat)
     rng = np.random.default_rng(0)
     for k in range(4):
         for task in rng.permutation(TASKS):

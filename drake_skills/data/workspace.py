@@ -7,12 +7,15 @@ stored in library files and configs, and every layer above normalizes with
 """
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
 from drake_skills._checks import as_finite_array
+from drake_skills._io import atomic_write
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,6 +123,39 @@ class Workspace:
     @classmethod
     def from_dict(cls, d: dict) -> "Workspace":
         return cls(np.asarray(d["lower"], float), np.asarray(d["upper"], float), float(d.get("scale", 10.0)))
+
+    def save(self, path: str | Path) -> Path:
+        """Write ``{"lower": [...], "upper": [...], "scale": 10.0}`` as JSON (a ``workspace.json``)."""
+        path = Path(path)
+        text = json.dumps(self.dict(), indent=1) + "\n"
+        atomic_write(path, lambda f: f.write(text.encode()))
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> "Workspace":
+        """Read a workspace written by :meth:`save` (or by hand: ``lower`` and ``upper`` lists, optional ``scale``).
+
+        Raises
+        ------
+        ValueError
+            Naming the file: not JSON, missing or unknown keys, bounds of different
+            lengths, not numbers, or an empty range on an axis.
+        """
+        path = Path(path)
+        where = f"workspace '{path}'"
+        if not path.is_file():
+            raise FileNotFoundError(f"{where}: no such file")
+        try:
+            d = json.loads(path.read_text())
+        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise ValueError(f"{where}: not a JSON file ({exc})") from None
+        if not isinstance(d, dict) or not {"lower", "upper"} <= set(d) or set(d) - {"lower", "upper", "scale"}:
+            keys = sorted(d) if isinstance(d, dict) else type(d).__name__
+            raise ValueError(f"{where}: expected an object with 'lower', 'upper' (and 'scale'), got {keys}")
+        try:
+            return cls.from_dict(d)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"{where}: {exc}") from None
 
     def __repr__(self) -> str:
         return f"Workspace(lower={self.lower.round(4).tolist()}, upper={self.upper.round(4).tolist()})"

@@ -90,7 +90,7 @@ def evaluate_salad(settings: SaladSettings | None = None, *, workers: int = 1, p
 
     cls_long, cls_mat, all_personal = classification_tables(s, names, personal)
     comp = components_table(s, names, personal)
-    resp, early, early_summary, resp_rows = response_tables(s, personal)
+    resp, early, early_summary, resp_rows, anticipation = response_tables(s, personal)
     kl_t, ks, inc, em = kl_table(s, kl)
     tc_long, tc_mat, tc_summary = task_components_tables(s, tc)
     tr_t, tr_acc = transfer_table(s, names, tr)
@@ -98,7 +98,8 @@ def evaluate_salad(settings: SaladSettings | None = None, *, workers: int = 1, p
     rep = EvalReport(f"Salad (Sec. 4.2), {s.subject_model} subjects", {
         "classification": cls_long, "classification_matrix": cls_mat, "components_per_subject": comp,
         "kl_vs_demos": kl_t, "components_per_task": tc_long, "components_per_task_matrix": tc_mat,
-        "transfer": tr_t, "response_vs_fraction": resp, "earliest_decision": early})
+        "transfer": tr_t, "response_vs_fraction": resp, "earliest_decision": early,
+        "anticipation": anticipation})
     full = s.grid().index(1.0)
     rep.summary = {
         "settings": s.resolved(),
@@ -112,6 +113,7 @@ def evaluate_salad(settings: SaladSettings | None = None, *, workers: int = 1, p
         "components_per_task_mean": tc_summary,
         "transfer_correct_wrong_unknown": tr_acc,
         "earliest_decision_fraction": early_summary,
+        "anticipation": {str(r[0]): dict(zip(anticipation.columns[1:], r[1:])) for r in anticipation.rows},
         "response_at_full_observation": dict(zip(resp.columns, resp_rows[full])),
         "seconds": seconds,
     }

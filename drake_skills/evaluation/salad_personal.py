@@ -26,7 +26,8 @@ import numpy as np
 from drake_skills.data.demonstration import Demonstration
 from drake_skills.data.workspace import Workspace
 from drake_skills.evaluation.common import Table, count_distribution, stream_rng
-from drake_skills.evaluation.labeled import CORRECT, UNKNOWN, WRONG, LabeledLibrary, fractions_of
+from drake_skills.evaluation.labeled import (CORRECT, UNKNOWN, WRONG, LabeledLibrary, fractions_of,
+                                             outcome_fractions)
 from drake_skills.evaluation.salad_data import SaladContext, SaladSettings
 from drake_skills.library.incremental import SkillLibrary
 from drake_skills.promp.preprocessing import resample_in_time, vertex_indices
@@ -35,7 +36,7 @@ from drake_skills.sim.models import FlangeKinematics
 #: Random stream of the splits (second seed word).
 STREAM_PERSONAL = 21
 #: The per-fraction arrays of a test motion, in table order.
-ERROR_FIELDS = ("outcome", "rmse", "flange", "prior_rmse", "prior_flange")
+ERROR_FIELDS = ("outcome", "rmse", "flange", "prior_rmse", "prior_flange", "anticipated", "phase")
 
 
 @dataclass(frozen=True, eq=False)
@@ -54,6 +55,10 @@ class ResponseErrors:
     #: The same for the recognized component's unconditioned mean.
     prior_rmse: np.ndarray
     prior_flange: np.ndarray
+    #: The decision without being told the fraction (phase estimated): CORRECT, WRONG, UNKNOWN or UNDECIDED.
+    anticipated: np.ndarray = None
+    #: The estimated phase of the best candidate then (NaN when unknown).
+    phase: np.ndarray = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,6 +74,9 @@ class PersonalTrial:
     flange: np.ndarray
     prior_rmse: np.ndarray
     prior_flange: np.ndarray
+    #: Decisions and estimated phases without the fraction given (see :class:`ResponseErrors`).
+    anticipated: np.ndarray
+    phase: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -137,8 +145,8 @@ def response_errors(lab: LabeledLibrary, demo: Demonstration, workspace: Workspa
     """
     lib = lab.library
     nf = len(fractions)
-    out = {"outcome": np.full(nf, UNKNOWN, dtype=int)}
-    for k in ("rmse", "flange", "prior_rmse", "prior_flange"):
+    out = {"outcome": np.full(nf, UNKNOWN, dtype=int), "anticipated": np.full(nf, UNKNOWN, dtype=int)}
+    for k in ("rmse", "flange", "prior_rmse", "prior_flange", "phase"):
         out[k] = np.full(nf, np.nan)
     p_demo = flange_position(demo.robot[-1])
     targets = {}
@@ -146,6 +154,9 @@ def response_errors(lab: LabeledLibrary, demo: Demonstration, workspace: Workspa
         human = observed_prefix(demo.human, f, workspace, lib.config.resample_tolerance)
         outcome, comp = lab.classify(human, demo.task, workspace, f)
         out["outcome"][i] = outcome
+        rec = lib.recognize(human, workspace=workspace)  # the fraction not given: the phase is estimated
+        out["anticipated"][i] = lab.outcome(rec.component, demo.task, rec.status)
+        out["phase"][i] = rec.phase
         if comp is None:
             continue
         mean, _ = lib.predict_robot(human, f, workspace=workspace, component=comp)
@@ -292,4 +303,18 @@ def response_tables(s: SaladSettings, personal: list[PersonalTrial]):
                   caption=(f"Earliest observed fraction of the path from which the decision is right at least "
                            f"{pct} of the time at every larger fraction of the grid {list(grid)} "
                            f"(personal libraries)."))
-    return resp, early, summary, rows
+    arows = []
+    for i, f in enumerate(grid):
+        o = cat["anticipated"][:, i]
+        ph = cat["phase"][:, i]
+        known = np.isfinite(ph)
+        arows.append([f, *outcome_fractions(o), _nanstat(ph, np.mean),
+                      _nanstat(np.abs(ph[known] - f), np.mean) if known.any() else float("nan")])
+    anticipation = Table(
+        ["true observed fraction", "correct", "wrong", "unknown", "undecided", "estimated phase (mean)",
+         "phase error (mean abs)"], arows,
+        caption=("Anticipation: the test motions' prefixes recognized WITHOUT being told how much of the motion "
+                 "they cover (the library estimates each skill's phase from the path length and the samples); "
+                 "correct / wrong / unknown / undecided, and the estimated phase of the best candidate against "
+                 "the true fraction of the path (personal libraries)."))
+    return resp, early, summary, rows, anticipation

@@ -26,13 +26,15 @@ assignment, so a failed step leaves it as it was.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Sequence
+from functools import cached_property
+from typing import Mapping, Sequence
 
 import numpy as np
-from scipy.special import logsumexp
 
 from drake_skills.library.novelty import NoveltyRule
+from drake_skills.promp.gaussian import logsumexp
 from drake_skills.library.scale import Cluster, SharedScale, gating_covariance
+from drake_skills.library.views import Responsibilities
 
 _LOG_2PI = np.log(2.0 * np.pi)
 #: Components whose responsibility reaches this are updated (and reported in ``Update.updated``).
@@ -75,6 +77,8 @@ class ComponentModel:
 class Components:
     """The components with their gating data stacked for vectorized scoring.
 
+    Immutable: a step of :func:`fold_in` builds a new one (its arrays are read-only).
+
     Attributes
     ----------
     items : tuple of ComponentModel
@@ -82,98 +86,176 @@ class Components:
         Human (gating) means, row k for ``items[k]``.
     support : array, shape (K,)
     created : array, shape (K,)
+    sub_means_h : array, shape (K, 2, h)
+        Human means of the two sub-clusters (the second 0 while it is empty).
+    sub_support : array, shape (K, 2)
+        Their supports (0 for an empty one).
+    id_array : array of int, shape (K,)
+        ``items[k].id``.
+    path_length : array, shape (K,)
+        Mean normalized path length of each component's demonstrations.
     """
 
     items: tuple = ()
     means_h: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     support: np.ndarray = field(default_factory=lambda: np.zeros(0))
     created: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
-    #: (K, 2, h) human means of the two sub-clusters (the second 0 while it is empty)
     sub_means_h: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 0)))
-    #: (K, 2) their supports (0 for an empty one)
     sub_support: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    id_array: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    path_length: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @property
+    def path_lengths(self) -> np.ndarray:
+        """(K,) mean path lengths of the components' demonstrations."""
+        return self.path_length
 
     @classmethod
     def of(cls, items: Sequence[ComponentModel], n_human: int) -> "Components":
-        work = _Work(cls((), np.zeros((0, n_human)), np.zeros(0), np.zeros(0, dtype=np.int64),
-                         np.zeros((0, 2, n_human)), np.zeros((0, 2))), n_human)
-        for c in items:
-            work.append(c)
-        return work.freeze()
+        items = tuple(items)
+        rows = [_rows(c, n_human) for c in items]
+        K = len(items)
+        if K:
+            means, support, created, sub_means, sub_support, ids, paths = (np.array(x) for x in zip(*rows))
+        else:
+            means, support, created = np.zeros((0, n_human)), np.zeros(0), np.zeros(0, dtype=np.int64)
+            sub_means, sub_support, ids, paths = np.zeros((0, 2, n_human)), np.zeros((0, 2)), np.zeros(0), np.zeros(0)
+        return cls._frozen(items, means.reshape(K, n_human), support.astype(float), created.astype(np.int64),
+                           sub_means.reshape(K, 2, n_human), sub_support.reshape(K, 2), ids.astype(np.int64),
+                           paths.astype(float))
+
+    @classmethod
+    def _frozen(cls, items, *arrays) -> "Components":
+        for a in arrays:
+            a.setflags(write=False)
+        return cls(items, *arrays)
 
     def __len__(self) -> int:
         return len(self.items)
 
-    @property
+    @cached_property
     def ids(self) -> tuple[int, ...]:
-        return tuple(c.id for c in self.items)
+        return tuple(int(i) for i in self.id_array)
+
+    def index(self, component_id: int) -> int:
+        """Row of the component with this id (KeyError if there is none)."""
+        hit = np.flatnonzero(self.id_array == component_id)
+        if not hit.size:
+            raise KeyError(component_id)
+        return int(hit[0])
+
+
+def _rows(c: ComponentModel, h: int):
+    """The stacked data of one component: mean, support, created, sub-cluster means and supports, id, path length."""
+    a, b = c.subclusters
+    sm = np.zeros((2, h))
+    ss = np.zeros(2)
+    sm[0], ss[0] = a.mean[:h], a.support
+    if b is not None:
+        sm[1], ss[1] = b.mean[:h], b.support
+    return c.cluster.mean[:h], c.cluster.support, c.created, sm, ss, c.id, c.cluster.path_length
 
 
 class _Work:
-    """A mutable working copy of the components during one step (private to :func:`fold_in`)."""
+    """A mutable working copy of the components during one step (private to :func:`fold_in`).
+
+    The arrays are copied once into buffers with spare rows, so that appending a
+    component (creation, split) writes one row instead of copying all K; removing
+    (merge, deletion) compacts them. :meth:`freeze` hands the buffers to a new
+    :class:`Components` (this object is not used after that).
+    """
 
     def __init__(self, comps: Components, h: int):
+        K = len(comps.items)
         self.items = list(comps.items)
-        self.means_h = comps.means_h.copy()
-        self.support = comps.support.copy()
-        self.created = comps.created.copy()
-        self.sub_means_h = comps.sub_means_h.copy()
-        self.sub_support = comps.sub_support.copy()
         self.h = h
+        cap = K + 4
+        self._means = _grown(comps.means_h, cap)
+        self._support = _grown(comps.support, cap)
+        self._created = _grown(comps.created, cap)
+        self._sub_means = _grown(comps.sub_means_h, cap)
+        self._sub_support = _grown(comps.sub_support, cap)
+        self._ids = _grown(comps.id_array, cap)
+        self._paths = _grown(comps.path_length, cap)
+        self.n = K
 
-    def _rows(self, c: ComponentModel):
-        h = self.h
-        a, b = c.subclusters
-        sm = np.zeros((2, h))
-        ss = np.zeros(2)
-        sm[0], ss[0] = a.mean[:h], a.support
-        if b is not None:
-            sm[1], ss[1] = b.mean[:h], b.support
-        return c.cluster.mean[:h], c.cluster.support, c.created, sm, ss
+    # views of the current rows
+    @property
+    def means_h(self) -> np.ndarray:
+        return self._means[:self.n]
+
+    @property
+    def support(self) -> np.ndarray:
+        return self._support[:self.n]
+
+    @property
+    def created(self) -> np.ndarray:
+        return self._created[:self.n]
+
+    @property
+    def sub_means_h(self) -> np.ndarray:
+        return self._sub_means[:self.n]
+
+    @property
+    def sub_support(self) -> np.ndarray:
+        return self._sub_support[:self.n]
+
+    def _buffers(self) -> tuple:
+        return self._means, self._support, self._created, self._sub_means, self._sub_support, self._ids, self._paths
 
     def set(self, i: int, c: ComponentModel) -> None:
         self.items[i] = c
-        self.means_h[i], self.support[i], self.created[i], self.sub_means_h[i], self.sub_support[i] = self._rows(c)
+        for buf, row in zip(self._buffers(), _rows(c, self.h)):
+            buf[i] = row
 
     def append(self, c: ComponentModel) -> None:
-        m, s, cr, sm, ss = self._rows(c)
-        self.items.append(c)
-        self.means_h = np.vstack([self.means_h, m[None]])
-        self.support = np.append(self.support, s)
-        self.created = np.append(self.created, cr)
-        self.sub_means_h = np.concatenate([self.sub_means_h, sm[None]])
-        self.sub_support = np.vstack([self.sub_support, ss[None]])
+        if self.n == self._means.shape[0]:
+            cap = 2 * self.n + 4
+            (self._means, self._support, self._created, self._sub_means, self._sub_support, self._ids,
+             self._paths) = (_grown(a[:self.n], cap) for a in self._buffers())
+        self.items.append(None)
+        self.n += 1
+        self.set(self.n - 1, c)
 
     def remove(self, idx) -> None:
-        idx = set(int(i) for i in np.atleast_1d(idx))
-        keep = np.array([i not in idx for i in range(len(self.items))], bool)
+        keep = np.ones(self.n, bool)
+        keep[np.atleast_1d(np.asarray(idx, dtype=int))] = False
         self.items = [c for c, k in zip(self.items, keep) if k]
-        self.means_h, self.support, self.created = self.means_h[keep], self.support[keep], self.created[keep]
-        self.sub_means_h, self.sub_support = self.sub_means_h[keep], self.sub_support[keep]
+        n = int(keep.sum())
+        for a in self._buffers():
+            a[:n] = a[:self.n][keep]
+        self.n = n
 
     def index(self, cid: int) -> int:
-        for i, c in enumerate(self.items):
-            if c.id == cid:
-                return i
-        raise KeyError(cid)
+        hit = np.flatnonzero(self._ids[:self.n] == cid)
+        if not hit.size:
+            raise KeyError(cid)
+        return int(hit[0])
 
     def freeze(self) -> Components:
-        return Components(tuple(self.items), self.means_h, self.support, self.created, self.sub_means_h,
-                          self.sub_support)
+        return Components._frozen(tuple(self.items), *(a[:self.n] for a in self._buffers()))
+
+
+def _grown(a: np.ndarray, rows: int) -> np.ndarray:
+    """A writable copy of ``a`` with ``rows`` rows (the first ``len(a)`` are ``a``)."""
+    out = np.empty((rows,) + a.shape[1:], dtype=a.dtype)
+    out[:a.shape[0]] = a
+    return out
 
 
 @dataclass(frozen=True)
 class Metric:
-    """The gating metric: ``Sigma`` (h, h), the inverse of its Cholesky factor and its log-determinant."""
+    """The gating metric: ``Sigma`` (h, h), the inverse of its Cholesky factor, its log-determinant, the factor."""
 
     cov: np.ndarray
     inv_chol: np.ndarray
     logdet: float
+    chol: np.ndarray | None = None
 
     @classmethod
     def of(cls, cov: np.ndarray) -> "Metric":
         L = np.linalg.cholesky(cov)
-        return cls(cov, np.linalg.inv(L), float(2.0 * np.sum(np.log(np.diag(L)))))
+        return cls(cov, np.linalg.inv(L), float(2.0 * np.sum(np.log(np.diag(L)))), L)
 
     def whiten(self, x: np.ndarray) -> np.ndarray:
         """``L^{-1} x`` for rows of ``x`` (n, h) or one (h,)."""
@@ -187,17 +269,20 @@ def gating_metric(scale: SharedScale, n_human: int, config) -> Metric:
                                        prior_floor=config.prior_floor))
 
 
-def gating_scores(w_h: np.ndarray, comps: Components, metric: Metric) -> tuple[np.ndarray, np.ndarray]:
+def gating_scores(w_h: np.ndarray, comps: Components, metric: Metric,
+                  whitened: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``log p(w_h | k)`` and the squared Mahalanobis distance ``d^2_k``, shapes (K,).
 
     The predictive covariance of component k is ``Sigma (1 + 1/s_k)`` (the shared
     within-skill covariance plus the uncertainty of the component's mean).
+    ``whitened``: ``metric.whiten(comps.means_h)`` if already known (K, h).
     """
     h = w_h.shape[0]
     if not len(comps):
         return np.zeros(0), np.zeros(0)
     inflate = 1.0 + 1.0 / comps.support
-    diff = metric.whiten(comps.means_h) - metric.whiten(w_h)
+    Z = metric.whiten(comps.means_h) if whitened is None else whitened
+    diff = Z - metric.whiten(w_h)
     d2 = np.einsum("ij,ij->i", diff, diff) / inflate
     logp = -0.5 * (h * _LOG_2PI + metric.logdet + h * np.log(inflate) + d2)
     return logp, d2
@@ -237,7 +322,7 @@ class Step:
     split: tuple[tuple[int, int], ...]
     deleted: tuple[int, ...]
     #: Component id -> responsibility, for every component before the update (empty if novel).
-    responsibilities: dict
+    responsibilities: Mapping
     #: Component id -> index (0 or 1) of the sub-cluster the demonstration joined.
     subcluster: dict
     history: tuple[dict, ...]
@@ -249,7 +334,7 @@ def _new_component(cid: int, created: int, w, duration: float, path_length: floa
 
 
 def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: float, path_length: float, *,
-            n_human: int, config, rule: NoveltyRule, next_id: int, demo_index: int) -> Step:
+            n_human: int, config, rule: NoveltyRule, next_id: int, demo_index: int, fit_residual: float = 0.0) -> Step:
     """Algorithm 1 for one demonstration with stacked weights ``w`` (d,) = ``[w_h; w_r]``.
 
     Parameters
@@ -271,13 +356,15 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
         Id of a component created now.
     demo_index : int
         Index of the demonstration in the stream; ages are counted from it.
+    fit_residual : float
+        Mean squared residual of the demonstration's human path around its basis fit.
     """
     h = n_human
     work = _Work(comps, h)
-    scale = scale.count(w)
+    scale = scale.count(w, fit_residual)
     created, updated, merged, split, deleted = [], [], [], [], []
     history: list[dict] = []
-    resp: dict = {}
+    resp: Mapping = {}
     subs: dict = {}
     recognized = None
     changed: set[int] = set()
@@ -299,7 +386,7 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
     else:
         lam = responsibilities(logp, comps.support, fits)
         recognized = comps.items[int(np.argmax(lam))].id
-        resp = {c.id: float(l) for c, l in zip(comps.items, lam)}
+        resp = Responsibilities(comps.id_array, lam)
         zw = metric.whiten(w[:h])
         for i in np.flatnonzero(lam >= UPDATED_RESPONSIBILITY):
             c, l = comps.items[i], float(lam[i])

@@ -35,10 +35,26 @@ Where it departs from the paper, and why (RESULTS.md has the measurements):
 * **Deletion** by age and support, with the age limit growing with the number of
   components (``delete_min_age K / 5``), so that a library of many skills, each
   shown rarely, does not delete them before their second demonstration.
+
+Two slips the library cannot undo later are warned about with :func:`warnings.warn`
+(a :class:`~drake_skills.library.views.DataWarning`, at most once per library object
+and kind; the library keeps working): a motion given without a workspace to a
+library trained with one (:class:`~drake_skills.library.views.WorkspaceWarning`:
+it is then compared in raw units and comes out "unknown"), and a motion far outside
+the normalized range the settings assume (:class:`~drake_skills.library.views.UnitsWarning`,
+see :data:`UNITS_RANGE`: metres or millimetres given without a workspace would
+otherwise merge or split silently). Whether the library was trained with a workspace
+is part of its state and of its file.
+
+Cost against the number of components K (issue 19; ``drake-skills bench --suite
+scale``): a step and a whole-motion recognition are a few matrix products over the
+K whitened means plus work on the components that change. The queries (recognition,
+prediction, the phase of a beginning) are in :mod:`drake_skills.library.recognition`.
 """
 from __future__ import annotations
 
 import logging
+import warnings
 from pathlib import Path
 from typing import Sequence
 
@@ -48,24 +64,32 @@ from drake_skills._checks import as_finite_array
 from drake_skills.data.demonstration import Demonstration
 from drake_skills.data.workspace import Workspace
 from drake_skills.library import storage
-from drake_skills.library.algorithm import (ComponentModel, Components, fold_in, gating_metric, gating_scores,
-                                            responsibilities)
+from drake_skills.library.algorithm import ComponentModel, Components, Metric, fold_in, gating_metric
 from drake_skills.library.config import NOVELTY_TESTS, LibraryConfig, WorkspaceBounds
 from drake_skills.library.novelty import novelty_rule
-from drake_skills.library.scale import Cluster, SharedScale, shared_covariance
+from drake_skills.library.recognition import RecognitionMixin, _Path
+from drake_skills.library.scale import SharedScale, shared_covariance
 from drake_skills.library.state import ComponentState, LibraryState
-from drake_skills.library.views import Component, Recognition, UnknownSkillError, Update
-from drake_skills.promp.basis import ridge_weights, trajectory_covariance
-from drake_skills.promp.interaction import InteractionProMP, condition_on_observations, prefix_statistics
-from drake_skills.promp.preprocessing import arc_length, resample_by_arc_length, resample_in_time
+from drake_skills.library.views import (Component, DataWarning, Recognition, UnitsWarning, UnknownSkillError,
+                                        Update, WorkspaceWarning)
+from drake_skills.promp.basis import ridge_weights
+from drake_skills.promp.interaction import InteractionProMP
+from drake_skills.promp.preprocessing import arc_length, resample_in_time
 
-__all__ = ["Component", "ComponentState", "LibraryConfig", "LibraryState", "NOVELTY_TESTS", "Recognition",
-           "SkillLibrary", "UnknownSkillError", "Update", "WorkspaceBounds"]
+__all__ = ["Component", "ComponentState", "DataWarning", "LibraryConfig", "LibraryState", "NOVELTY_TESTS",
+           "Recognition", "SkillLibrary", "UNITS_RANGE", "UnitsWarning", "UnknownSkillError", "Update",
+           "WorkspaceBounds", "WorkspaceWarning"]
 
 log = logging.getLogger(__name__)
 
-#: Relative phase grid around the path-length estimate searched by prefix recognition.
-PHASE_GRID = (0.8, 0.9, 1.0, 1.1, 1.25)
+#: The extent of a motion (its largest per-axis range after Eq. 14) as fractions of the
+#: normalized workspace scale (10 without a workspace, as the settings assume): a whole
+#: motion spanning less than the first, or any motion spanning more than the second, is
+#: taken to be in other units (:class:`UnitsWarning`). Whole motions of our data sets
+#: span 0.14-1.0 of the scale normalized (LASA 1.4-5.3 units with the letters' bounding
+#: box, salad 2.0-7.0, buetepage_hr 4.7-9.9) and 0.03-0.06 given in metres without a
+#: workspace (0.28-0.63 m); in millimetres, 28-63.
+UNITS_RANGE = (0.1, 10.0)
 
 
 def _read_only(a: np.ndarray) -> np.ndarray:
@@ -74,7 +98,7 @@ def _read_only(a: np.ndarray) -> np.ndarray:
     return v
 
 
-class SkillLibrary:
+class SkillLibrary(RecognitionMixin):
     """An open-ended library of collaborative skills learned one demonstration at a time.
 
     Parameters
@@ -106,6 +130,9 @@ class SkillLibrary:
         self._next_id = 0
         self._n_seen = 0
         self._shared = None  # cache: shared stacked covariance of the current scale
+        self._with_workspace: bool | None = False  # None: unknown (a file written before it was kept)
+        self._warned: set[str] = set()  # DataWarning kinds already issued by this object
+        self._memo: dict = {}  # caches of one library version: name -> ((components, scale), value)
         self.dim_human_: int | None = None
         self.dim_robot_: int | None = None
 
@@ -115,7 +142,7 @@ class SkillLibrary:
         comps = tuple(ComponentState(c.id, self._n_seen - c.created, c.cluster, c.subclusters)
                       for c in self._components.items)
         return LibraryState(self.config, self.dim_human_, self.dim_robot_, self._next_id, self._n_seen, comps,
-                            tuple(dict(e) for e in self._history), self._scale)
+                            tuple(dict(e) for e in self._history), self._scale, self._with_workspace)
 
     @classmethod
     def from_state(cls, state: LibraryState) -> "SkillLibrary":
@@ -125,6 +152,7 @@ class SkillLibrary:
         lib = cls(state.config)
         lib._history = [dict(e) for e in state.history]
         lib._next_id, lib._n_seen = int(state.next_id), int(state.n_seen)
+        lib._with_workspace = state.trained_with_workspace
         if state.dim_human is not None:
             lib.dim_human_, lib.dim_robot_ = int(state.dim_human), int(state.dim_robot)
             lib._scale = state.scale
@@ -172,16 +200,21 @@ class SkillLibrary:
     def has_robot(self) -> bool:
         return bool(self.dim_robot_)
 
+    @property
+    def trained_with_workspace(self) -> bool | None:
+        """Whether a demonstration was folded in with a workspace (None: not known, an older file)."""
+        return self._with_workspace
+
     def component(self, component_id: int) -> Component:
         """The component with this id (KeyError if there is none)."""
         c = self._model(component_id)
         return self._view(c, float(self._components.support.sum()), self.n_human)
 
     def _model(self, component_id: int) -> ComponentModel:
-        for c in self._components.items:
-            if c.id == component_id:
-                return c
-        raise KeyError(f"no component with id {component_id}; ids are {list(self._components.ids)}")
+        try:
+            return self._components.items[self._components.index(component_id)]
+        except (KeyError, TypeError):
+            raise KeyError(f"no component with id {component_id}; ids are {list(self._components.ids)}") from None
 
     def shared_covariance(self, part: str = "gating") -> np.ndarray:
         """The learned within-skill covariance: of the gating weights (h, h) or the stacked weights (d, d).
@@ -211,9 +244,38 @@ class SkillLibrary:
         return self._shared_cov()[:h, :h]
 
     def _expert_cov(self, c: ComponentModel) -> np.ndarray:
-        k = self.config.expert_prior
-        C = (k * self._shared_cov() + c.cluster.scatter) / (k + c.support - 1.0)
-        return 0.5 * (C + C.T)
+        """``(kappa Sigma + S_k) / (kappa + s_k - 1)``, kept until the library learns (a d x d product each)."""
+        if getattr(self, "_expert_cache", (None,))[0] is not self._scale:
+            self._expert_cache = (self._scale, {})
+        cache = self._expert_cache[1]
+        key = id(c.cluster)
+        if key not in cache or cache[key][0] is not c.cluster:
+            k = self.config.expert_prior
+            C = (k * self._shared_cov() + c.cluster.scatter) / (k + c.support - 1.0)
+            C = 0.5 * (C + C.T)
+            C.setflags(write=False)
+            if len(cache) >= 64:  # a few d x d matrices, not one per component of a large library
+                cache.pop(next(iter(cache)))
+            cache[key] = (c.cluster, C)
+        return cache[key][1]
+
+    def _cached(self, name: str, compute):
+        """``compute()`` once per version of the library (components and scale are immutable, so identity is version)."""
+        key = (self._components, self._scale)
+        hit = self._memo.get(name)
+        if hit is not None and hit[0][0] is key[0] and hit[0][1] is key[1]:
+            return hit[1]
+        value = compute()
+        self._memo[name] = (key, value)
+        return value
+
+    def _metric(self) -> Metric:
+        """The gating metric of the current scale."""
+        return self._cached("metric", lambda: gating_metric(self._scale, self.n_human, self.config))
+
+    def _whitened_means(self) -> np.ndarray:
+        """``L^{-1} mu_k`` of every component (K, h): a whole motion's distances are one product away."""
+        return self._cached("whitened", lambda: self._metric().whiten(self._components.means_h))
 
     def as_mixture(self, part: str = "gating"):
         """The library as a Gaussian mixture ``(weights (K,), means (K, d), covs (K, d, d))``.
@@ -242,7 +304,7 @@ class SkillLibrary:
         return InteractionProMP.from_moments(
             np.array(c.mean), self._expert_cov(c), self.dim_human_, self.dim_robot_,
             basis_human=cfg.basis_human, basis_robot=cfg.basis_robot, ridge=cfg.ridge,
-            observation_noise=cfg.observation_noise)
+            observation_noise=self._noise())
 
     def _check_fitted(self):
         if self.dim_human_ is None:
@@ -252,15 +314,8 @@ class SkillLibrary:
         return f"SkillLibrary(n_components={self.n_components}, n_seen={self.n_seen})"
 
     # --------------------------------------------------------- preprocessing
-    def _normalized(self, human, workspace=None, normalized: bool = False, where: str | None = None):
-        """Eq. (14): the motion in normalized units relative to its start, and its path length.
-
-        Returns
-        -------
-        y : array, shape (T, D_h)
-        length : float
-            Arc length of ``y`` counting only moves beyond ``resample_tolerance``.
-        """
+    def _normalized(self, human, workspace=None, normalized: bool = False, where: str | None = None) -> "_Path":
+        """Eq. (14): the motion in normalized units relative to its start, with its path (see :class:`_Path`)."""
         cfg = self.config
         human = as_finite_array(human, "human", ndim=2, min_rows=2, where=where)
         if self.dim_human_ is not None and human.shape[1] != self.dim_human_:
@@ -279,15 +334,57 @@ class SkillLibrary:
                 human = ws.normalize(human, subtract_start=cfg.subtract_start)
             elif cfg.subtract_start:
                 human = human - human[0]
-        length = float(arc_length(human, cfg.resample_tolerance)[1][-1])
-        if not length > 0:
+        vertices, s = arc_length(human, cfg.resample_tolerance)
+        if not s[-1] > 0:
             raise ValueError(f"{where + ': ' if where else ''}human trajectory does not move: its path length is 0")
-        return human, length
+        return _Path(human, vertices, s)
 
     def path_length(self, human, *, workspace: Workspace | None = None, normalized: bool = False,
                     where: str | None = None) -> float:
         """Length of the human path in normalized units (the measure of a prefix's phase)."""
-        return self._normalized(human, workspace, normalized, where)[1]
+        return self._normalized(human, workspace, normalized, where).length
+
+    # ----------------------------------------------------------- data guards
+    def _warn_once(self, kind: str, category: type[DataWarning], message: str, stacklevel: int) -> None:
+        if kind in self._warned:
+            return
+        self._warned.add(kind)
+        warnings.warn(message + " (warned once per library)", category, stacklevel=stacklevel + 1)
+
+    def _guard(self, y: np.ndarray, workspace, normalized: bool, *, whole: bool, query: bool,
+               where: str | None, stacklevel: int = 3) -> None:
+        """Warn about a missing workspace or data in other units (see :data:`UNITS_RANGE`).
+
+        ``y`` are the samples after Eq. (14), ``whole`` says they cover a whole motion
+        (a prefix may span little), ``query`` that they are asked about, not taught.
+        """
+        ws = workspace if workspace is not None else self.config.workspace
+        if ws is None and not normalized and self._with_workspace:
+            call = "recognize()/predict_robot()" if query else "partial_fit()"
+            self._warn_once("workspace", WorkspaceWarning,
+                            f"{where + ': ' if where else ''}{call} without a workspace on a library trained with "
+                            f"one: the motion is taken in raw units and will likely be 'unknown'; pass workspace= "
+                            f"(the subject's Workspace) or, for samples already in normalized units, normalized=True",
+                            stacklevel)
+            return  # the units test would only repeat it
+        scale = ws.scale if ws is not None else 10.0
+        extent = float(np.ptp(y, axis=0).max())
+        low, high = UNITS_RANGE[0] * scale, UNITS_RANGE[1] * scale
+        if (whole and extent < low) or extent > high:
+            side = "below" if extent < low else "above"
+            if ws is not None:
+                fix = "are the workspace and the data in the same units?"
+            elif normalized:
+                fix = "normalized=True expects samples in the library's normalized units (Eq. 14 applied)."
+            else:
+                fix = ("raw metres or millimetres? Pass the subject's workspace= (Workspace.from_calibration("
+                       "motions), or the bounding box of the training data: Workspace.from_calibration([d.human "
+                       "for d in demos])), or normalize the data to [0, %g] first." % scale)
+            what = where or ("the motion" if query else "the demonstration")
+            self._warn_once("units", UnitsWarning,
+                            f"{what} spans {extent:.3g} units, far {side} the normalized range [0, {scale:g}] the "
+                            f"library's settings assume (a whole motion spans {low:g} to {high:g} units in it): "
+                            f"{fix}", stacklevel)
 
     def human_samples(self, human, *, workspace: Workspace | None = None, observed_fraction: float = 1.0,
                       normalized: bool = False, where: str | None = None) -> np.ndarray:
@@ -318,9 +415,8 @@ class SkillLibrary:
         f = float(observed_fraction)
         if not 0 < f <= 1:
             raise ValueError(f"observed_fraction must be in (0, 1], got {observed_fraction!r}")
-        y, _ = self._normalized(human, workspace, normalized, where)
         n = cfg.n_samples if f == 1 else max(2, int(round(f * cfg.n_samples)))
-        return resample_by_arc_length(y, n, cfg.resample_tolerance)
+        return self._normalized(human, workspace, normalized, where).resample(n)
 
     def encode(self, demo: Demonstration, workspace: Workspace | None = None) -> np.ndarray:
         """The stacked weights of a demonstration in the library's weight space (Eqs. 3-4, 14).
@@ -394,228 +490,30 @@ class SkillLibrary:
         if not np.isfinite(w).all():
             raise ValueError("demonstration gives non-finite weights")
         where = f"demo {demo.name!r}" if demo.name else "demonstration"
-        path = self.path_length(demo.human, workspace=workspace, where=where)
+        normalized_path = self._normalized(demo.human, workspace, False, where)
+        self._guard(normalized_path.y, workspace, False, whole=True, query=False, where=where)
+        path = normalized_path.length
         n = self._n_seen
         h = demo.dim_human * self.config.n_basis_human
+        cfg = self.config
+        y_h = self.human_samples(demo.human, workspace=workspace, where=where)
+        fit = cfg.basis_human.phi_uniform(y_h.shape[0]) @ w[:h].reshape(demo.dim_human, -1).T
+        fit_residual = float(np.mean((y_h - fit) ** 2))
         comps = self._components if self._scale is not None else Components.of([], h)
         scale = self._scale if self._scale is not None else SharedScale.empty(w.shape[0])
         step = fold_in(comps, scale, w, demo.duration, path, n_human=h, config=self.config, rule=self._rule,
-                       next_id=self._next_id, demo_index=n)
+                       next_id=self._next_id, demo_index=n, fit_residual=fit_residual)
         # commit: nothing above touched self
         self._components, self._scale = step.components, step.scale
         self._history.extend(step.history)
         self._next_id = step.next_id
         self._n_seen = n + 1
+        if workspace is not None or self.config.workspace is not None:
+            self._with_workspace = True
         if self.dim_human_ is None:
             self.dim_human_, self.dim_robot_ = demo.dim_human, demo.dim_robot
         return Update(n, step.recognized, step.created, step.updated, step.merged, step.deleted,
                       step.responsibilities, step.split, step.subcluster)
-
-    # ------------------------------------------------------------- run time
-    def recognize(self, human, *, observed_fraction: float | None = None, workspace: Workspace | None = None,
-                  normalized: bool = False) -> Recognition:
-        """Which skill is this human motion (Eq. 12): "skill", "undecided" or "unknown".
-
-        Parameters
-        ----------
-        human : array, shape (T, D_h)
-            The observed human positions (raw units if a workspace applies; see
-            :meth:`human_samples` for ``normalized``): a whole motion or its beginning.
-        observed_fraction : float in (0, 1], optional
-            The fraction of the whole motion's path ``human`` covers, if known: 1 tests
-            the motion's weights against each component (as learning does), less
-            compares the observed samples with each component's prefix of that length.
-            If omitted, the fraction is estimated per component: its path length
-            against the component's mean path length, refined over :data:`PHASE_GRID`
-            by the likelihood of the samples (``Recognition.phases``).
-        workspace : Workspace, optional
-        normalized : bool
-            ``human`` is already in the library's normalized units (Eq. 14 applied).
-        """
-        self._check_fitted()
-        if observed_fraction is not None:
-            y = self.human_samples(human, workspace=workspace, observed_fraction=observed_fraction,
-                                   normalized=normalized)
-            return self._recognize_fixed(y, float(observed_fraction))
-        y, length = self._normalized(human, workspace, normalized)
-        return self._recognize_prefix(y, length)
-
-    def _empty_recognition(self, dof) -> Recognition:
-        z = np.zeros(0)
-        return Recognition(None, (), z, z, z, dof, "unknown", z, z)
-
-    def _decide(self, logp, d2, dof, phases) -> Recognition:
-        comps = self._components
-        fits = ~self._rule.novel(logp, d2, dof)
-        resp = responsibilities(logp, comps.support)
-        post = responsibilities(logp, comps.support, fits)
-        ids = comps.ids
-        best = int(np.argmax(post))
-        if not fits.any():
-            status, comp = "unknown", None
-        elif post[best] >= 1.0 - self.config.decision_risk or \
-                post[self._same_response(best, post > 0)].sum() >= 1.0 - self.config.decision_risk:
-            status, comp = "skill", ids[best]
-        else:
-            status, comp = "undecided", None
-        return Recognition(comp, ids, resp, logp, d2, dof, status, phases, post)
-
-    def _same_response(self, best: int, candidates: np.ndarray) -> np.ndarray:
-        """Which candidates answer like component ``best`` (a mask, ``best`` included).
-
-        Executing ``best`` is only wrong if the motion belongs to a component that
-        would answer differently: another component whose mean response (its robot
-        weights; the human weights of a human-only library) lies within the best's
-        predictive within-skill spread (the ``novelty_quantile`` of the distance under
-        ``Sigma_rr (1 + 1/s_best)``) answers the same way, so its probability counts
-        for ``best`` in the decision.
-        """
-        comps = self._components
-        h = self.n_human
-        idx = np.flatnonzero(candidates)
-        out = np.zeros(len(comps), bool)
-        out[best] = True
-        others = idx[idx != best]
-        if not others.size:
-            return out
-        block = slice(h, None) if self.has_robot else slice(0, h)
-        S = self._shared_cov()[block, block] * (1.0 + 1.0 / comps.support[best])
-        Linv = np.linalg.inv(np.linalg.cholesky(S))
-        mb = comps.items[best].mean[block]
-        diff = np.stack([comps.items[j].mean[block] - mb for j in others]) @ Linv.T
-        d2 = np.einsum("ij,ij->i", diff, diff)
-        dof = S.shape[0]
-        from drake_skills.library.novelty import chi2_ppf
-        out[others] = d2 <= chi2_ppf(self.config.novelty_quantile, dof)
-        return out
-
-    def _recognize_fixed(self, y, observed_fraction: float) -> Recognition:
-        """Eq. (12) on preprocessed human samples ``y`` evenly spaced in phase over ``[0, observed_fraction]``."""
-        cfg = self.config
-        comps = self._components
-        h = self.n_human
-        if not len(comps):
-            return self._empty_recognition(h)
-        metric = gating_metric(self._scale, h, cfg)
-        if observed_fraction == 1:
-            w_h = ridge_weights(y, cfg.basis_human, cfg.ridge)
-            logp, d2 = gating_scores(w_h, comps, metric)
-            return self._decide(logp, d2, h, np.ones(len(comps)))
-        Phi_o = cfg.basis_human.phi(np.linspace(0.0, observed_fraction, y.shape[0]))
-        logp, d2, dof = self._prefix_scores(y, [Phi_o] * len(comps), metric)
-        return self._decide(logp, d2, dof, np.full(len(comps), observed_fraction))
-
-    def _prefix_scores(self, y, Phis, metric):
-        comps = self._components
-        K = len(comps)
-        logp, d2, dof = np.empty(K), np.empty(K), np.empty(K)
-        for i, (c, Phi_o) in enumerate(zip(comps.items, Phis)):
-            S = metric.cov * (1.0 + 1.0 / c.support)
-            logp[i], d2[i], dof[i] = prefix_statistics(comps.means_h[i], S, Phi_o, y, self.config.observation_noise)
-        return logp, d2, dof
-
-    def _recognize_prefix(self, y, length: float) -> Recognition:
-        """Recognition with the phase estimated per component (see :meth:`recognize`)."""
-        cfg = self.config
-        comps = self._components
-        h = self.n_human
-        if not len(comps):
-            return self._empty_recognition(h)
-        metric = gating_metric(self._scale, h, cfg)
-        lengths = np.array([max(c.cluster.path_length, 1e-12) for c in comps.items])
-        guess = length / lengths
-        m = max(2, int(round(cfg.n_samples * min(1.0, float(np.median(np.minimum(guess, 1.0)))))))
-        ys = _resample_path(y, m, cfg.resample_tolerance)
-        best = None
-        for factor in PHASE_GRID:
-            f = np.clip(guess * factor, 1.0 / cfg.n_samples, 1.0)
-            Phis = [cfg.basis_human.phi(np.linspace(0.0, fk, m)) for fk in f]
-            lp, dd, df = self._prefix_scores(ys, Phis, metric)
-            if best is None:
-                best = [lp, dd, df, f]
-            else:
-                better = lp > best[0]
-                for arr, new in zip(best, (lp, dd, df, f)):
-                    arr[better] = new[better]
-        logp, d2, dof, phases = best
-        return self._decide(logp, d2, dof, phases)
-
-    def predict_robot(self, human, observed_fraction: float | None = None, *, workspace: Workspace | None = None,
-                      component: int | None = None, n_steps: int | None = None, normalized: bool = False):
-        """Robot trajectory for an observed human motion (Eqs. 12-13).
-
-        Recognizes the skill (unless ``component`` is given), conditions its
-        Interaction ProMP on the observed human samples and returns the robot
-        trajectory distribution over the component's phase (normalized time).
-        Without ``observed_fraction`` the fraction observed is estimated as in
-        :meth:`recognize`. ``normalized=True``: ``human`` is already in the library's
-        normalized units (see :meth:`human_samples`).
-
-        Returns
-        -------
-        mean : array, shape (n_steps, D_r)
-            Joint positions; play them over ``component(k).duration`` seconds.
-        cov : array, shape (n_steps, D_r, D_r)
-            Per-step covariance.
-
-        Raises
-        ------
-        UnknownSkillError
-            If the motion matches no component, or more than one and none clearly.
-        ValueError
-            For bad input, or a library without robot trajectories.
-        KeyError
-            If ``component`` is not a component id (e.g. it was deleted).
-        """
-        self._check_fitted()
-        if not self.has_robot:
-            raise ValueError("this library was learned from human-only demonstrations: it has no robot part")
-        cfg = self.config
-        if observed_fraction is None:
-            y, length = self._normalized(human, workspace, normalized)
-            if component is None:
-                rec = self._recognize_prefix(y, length)
-                if rec.component is None:
-                    raise UnknownSkillError(_unknown_message(rec))
-                component, f = rec.component, rec.phase
-            else:
-                c = self._model(component)
-                f = self._phase_of(y, length, c)
-            y = _resample_path(y, max(2, int(round(cfg.n_samples * f))), cfg.resample_tolerance)
-        else:
-            f = float(observed_fraction)
-            y = self.human_samples(human, workspace=workspace, observed_fraction=f, normalized=normalized)
-            if component is None:
-                rec = self._recognize_fixed(y, f)
-                if rec.component is None:
-                    raise UnknownSkillError(_unknown_message(rec))
-                component = rec.component
-        c = self._model(component)
-        Phi_o = cfg.basis_human.phi(np.linspace(0.0, f, y.shape[0]))
-        h, n = self.n_human, n_steps or cfg.n_samples
-        # Eq. (13), keeping only the robot block of the posterior
-        mean_w, cov_w = condition_on_observations(c.mean, self._expert_cov(c), Phi_o, y, cfg.observation_noise,
-                                                  start=h)
-        mean_r = cfg.basis_robot.phi_uniform(n) @ mean_w.reshape(self.dim_robot_, -1).T
-        cov_r = trajectory_covariance(cov_w, cfg.basis_robot, self.dim_robot_, n_steps=n)
-        return mean_r, cov_r
-
-    def _phase_of(self, y, length: float, c: ComponentModel) -> float:
-        """The phase of one component that explains the normalized path ``y`` best (over :data:`PHASE_GRID`)."""
-        cfg = self.config
-        metric = gating_metric(self._scale, self.n_human, cfg)
-        guess = length / max(c.cluster.path_length, 1e-12)
-        best = (-np.inf, 1.0)
-        i = self._components.ids.index(c.id)
-        for factor in PHASE_GRID:
-            f = float(np.clip(guess * factor, 1.0 / cfg.n_samples, 1.0))
-            m = max(2, int(round(cfg.n_samples * f)))
-            ys = _resample_path(y, m, cfg.resample_tolerance)
-            lp, _, _ = prefix_statistics(self._components.means_h[i], metric.cov * (1.0 + 1.0 / c.support),
-                                         cfg.basis_human.phi(np.linspace(0.0, f, m)), ys, cfg.observation_noise)
-            if lp > best[0]:
-                best = (lp, f)
-        return best[1]
 
     # ---------------------------------------------------------------- storage
     def save(self, path) -> Path:
@@ -630,14 +528,3 @@ class SkillLibrary:
         """Read a library written by :meth:`save`; corrupt or foreign files raise ValueError."""
         return cls.from_state(storage.load_state(path))
 
-
-def _resample_path(y: np.ndarray, n: int, tolerance: float) -> np.ndarray:
-    return resample_by_arc_length(y, n, tolerance)
-
-
-def _unknown_message(rec: Recognition) -> str:
-    if rec.status == "undecided":
-        top = np.argsort(rec.posterior)[::-1][:2]
-        cands = ", ".join(f"{rec.ids[i]} ({rec.posterior[i]:.2f})" for i in top)
-        return f"the motion fits more than one skill and none clearly ({cands}): observe more, or ask"
-    return "the motion matches no skill in the library: ask for a demonstration"

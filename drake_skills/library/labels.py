@@ -45,6 +45,23 @@ class TaskVotes:
         for k in update.deleted:
             self._votes.pop(k, None)
 
+    def to_dict(self) -> dict:
+        """JSON-ready: ``{"<id>": [{task: count}, {task: count}]}`` (the votes of its two sub-clusters)."""
+        return {str(k): [dict(v[0]), dict(v[1])] for k, v in sorted(self._votes.items())}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "TaskVotes":
+        """The inverse of :meth:`to_dict`; a malformed entry raises ``ValueError``."""
+        out = cls()
+        try:
+            for k, pair in d.items():
+                a, b = pair
+                out._votes[int(k)] = [Counter({str(t): int(n) for t, n in a.items()}),
+                                      Counter({str(t): int(n) for t, n in b.items()})]
+        except (AttributeError, TypeError, ValueError) as exc:
+            raise ValueError(f"task votes must map component ids to two {{task: count}} objects ({exc})") from None
+        return out
+
     def label_of(self, component: int | None):
         """The majority task of the demonstrations ``component`` absorbed (None if none)."""
         if component is None or component not in self._votes:

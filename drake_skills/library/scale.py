@@ -142,6 +142,11 @@ class SharedScale:
         P, the sum of the components' scatters.
     dof : float
         nu, the sum over components of ``s_k - 1``.
+    fit_m2 : float
+        Sum over the demonstrations of the mean squared residual of their human path
+        around its own basis fit (normalized units^2): what the weights cannot hold (the
+        sensor noise, an oscillation finer than the basis). Its mean is the observation
+        noise prefix recognition and conditioning need (:func:`observation_noise`).
     """
 
     n: int
@@ -149,24 +154,26 @@ class SharedScale:
     total_m2: np.ndarray
     pooled: np.ndarray
     dof: float
+    fit_m2: float = 0.0
 
     @classmethod
     def empty(cls, d: int) -> "SharedScale":
-        return cls(0, np.zeros(d), np.zeros(d), np.zeros((d, d)), 0.0)
+        return cls(0, np.zeros(d), np.zeros(d), np.zeros((d, d)), 0.0, 0.0)
 
-    def count(self, w: np.ndarray) -> "SharedScale":
-        """The totals with one more demonstration ``w`` (d,)."""
+    def count(self, w: np.ndarray, fit_residual: float = 0.0) -> "SharedScale":
+        """The totals with one more demonstration ``w`` (d,) whose human fit left ``fit_residual`` (mean square)."""
         n = self.n + 1
         delta = w - self.total_mean
         mean = self.total_mean + delta / n
         m2 = self.total_m2 + delta * (w - mean)
-        return SharedScale(n, mean, m2, self.pooled, self.dof)
+        return SharedScale(n, mean, m2, self.pooled, self.dof, self.fit_m2 + float(fit_residual))
 
     def with_scatter(self, columns: np.ndarray, sign: float, dof: float) -> "SharedScale":
         """``P +- columns columns^T`` and ``nu + dof`` (``columns`` (d,) or (d, r))."""
         g = np.asarray(columns, float).reshape(self.pooled.shape[0], -1)
         pooled = self.pooled + sign * (g @ g.T)
-        return SharedScale(self.n, self.total_mean, self.total_m2, 0.5 * (pooled + pooled.T), self.dof + dof)
+        return SharedScale(self.n, self.total_mean, self.total_m2, 0.5 * (pooled + pooled.T), self.dof + dof,
+                           self.fit_m2)
 
     def block_variances(self, n_human: int) -> tuple[float, float]:
         """Mean variance per weight over all demonstrations: human block, robot block."""
@@ -174,6 +181,18 @@ class SharedScale:
         t_h = float(np.mean(var[:n_human])) if n_human else 0.0
         t_r = float(np.mean(var[n_human:])) if var.shape[0] > n_human else 0.0
         return t_h, t_r
+
+
+def observation_noise(scale: SharedScale, floor: float) -> float:
+    """Variance of an observed human sample: the mean out-of-basis residual of the demonstrations seen, at least ``floor``.
+
+    With a fixed value (``LibraryConfig.observation_noise``) a motion whose path
+    holds more than the basis can (a wave, a shake: its oscillation is finer than
+    seven Gaussians) looks impossibly far from every prefix of its own skill; the
+    residual the library has seen says how far samples lie off a fit.
+    """
+    seen = scale.fit_m2 / scale.n if scale.n else 0.0
+    return max(float(floor), float(seen))
 
 
 def _blend(P: np.ndarray, dof: float, W0_diag: np.ndarray, prior_strength: float) -> np.ndarray:

@@ -7,6 +7,7 @@ experiment keeps when it needs a library as it was.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -55,18 +56,24 @@ class ComponentState:
         return self.cluster.path_length
 
 
-def _check_cluster(cl, d: int, what: str) -> None:
+def _check_cluster(cl, d: int, what: str, *, arrays: bool = True) -> None:
+    """Raise ValueError naming ``what`` if ``cl`` is not a valid cluster of ``d`` weights.
+
+    ``arrays=False`` skips the NaN/inf test of the mean and the scatter factor (the
+    caller tests all clusters' arrays at once).
+    """
     if not isinstance(cl, Cluster):
         raise ValueError(f"{what} is not a Cluster")
-    if not (np.isfinite(cl.support) and cl.support > 0):
+    if not (math.isfinite(cl.support) and cl.support > 0):
         raise ValueError(f"{what} has support {cl.support}")
-    if np.shape(cl.mean) != (d,) or np.ndim(cl.factor) != 2 or np.shape(cl.factor)[0] != d \
-            or np.shape(cl.factor)[1] > d:
-        raise ValueError(f"{what} has mean and scatter shapes {np.shape(cl.mean)}, {np.shape(cl.factor)}; "
-                         f"the dimensions say {d} weights")
-    if not (np.isfinite(cl.mean).all() and np.isfinite(cl.factor).all()):
+    ms = cl.mean.shape if isinstance(cl.mean, np.ndarray) else np.shape(cl.mean)
+    fs = cl.factor.shape if isinstance(cl.factor, np.ndarray) else np.shape(cl.factor)
+    if ms != (d,) or len(fs) != 2 or fs[0] != d or fs[1] > d:
+        raise ValueError(f"{what} has mean and scatter shapes {ms}, {fs}; the dimensions say {d} weights")
+    if arrays and not (np.isfinite(cl.mean).all() and np.isfinite(cl.factor).all()):
         raise ValueError(f"{what} has NaN or inf in its mean or scatter")
-    if not (np.isfinite(cl.duration) and cl.duration >= 0 and np.isfinite(cl.path_length) and cl.path_length >= 0):
+    if not (math.isfinite(cl.duration) and cl.duration >= 0 and math.isfinite(cl.path_length)
+            and cl.path_length >= 0):
         raise ValueError(f"{what} has duration {cl.duration} and path length {cl.path_length}")
 
 
@@ -89,6 +96,10 @@ class LibraryState:
         Creations, merges, splits and deletions, in order (JSON-ready dicts).
     scale : SharedScale or None
         The totals and the pooled within-skill scatter (None before the first demonstration).
+    trained_with_workspace : bool or None
+        Whether any demonstration was folded in with a workspace (Eq. 14 from raw
+        units), so that a query without one is probably a mistake; None when not known
+        (files written before the library kept it).
     """
 
     config: LibraryConfig
@@ -99,8 +110,11 @@ class LibraryState:
     components: tuple[ComponentState, ...] = ()
     history: tuple[dict, ...] = ()
     scale: SharedScale | None = None
+    trained_with_workspace: bool | None = None
 
     def __post_init__(self):
+        if self.trained_with_workspace is not None and not isinstance(self.trained_with_workspace, bool):
+            raise ValueError(f"trained_with_workspace must be True, False or None, got {self.trained_with_workspace!r}")
         if not isinstance(self.config, LibraryConfig):
             raise ValueError(f"config must be a LibraryConfig, got {type(self.config).__name__}")
         if (self.dim_human is None) != (self.dim_robot is None):
@@ -122,11 +136,12 @@ class LibraryState:
                 raise ValueError(f"shared scale has shapes {np.shape(sc.total_mean)}, {np.shape(sc.pooled)}; "
                                  f"the dimensions say {d} weights")
             if not all(np.isfinite(a).all() for a in (sc.total_mean, sc.total_m2, sc.pooled)) \
-                    or not np.isfinite(sc.dof) or sc.n < 0:
+                    or not np.isfinite(sc.dof) or sc.n < 0 or not (np.isfinite(sc.fit_m2) and sc.fit_m2 >= 0):
                 raise ValueError("shared scale has NaN or inf entries or a negative count")
             if (sc.total_m2 < -1e-9 * (1 + np.abs(sc.total_m2).max())).any() or sc.dof < -1e-9:
                 raise ValueError("shared scale has negative variances or degrees of freedom")
         ids = set()
+        clusters = []
         for c in self.components:
             if c.id in ids or not 0 <= c.id < self.next_id:
                 raise ValueError(f"component id {c.id} is duplicated or out of range (next id {self.next_id})")
@@ -134,15 +149,22 @@ class LibraryState:
             if not 1 <= c.age <= max(self.n_seen, 1):
                 raise ValueError(f"component {c.id} has age {c.age}; the library has seen {self.n_seen} "
                                  f"demonstrations")
-            _check_cluster(c.cluster, d, f"component {c.id}")
+            _check_cluster(c.cluster, d, f"component {c.id}", arrays=False)
+            clusters.append((c.cluster, f"component {c.id}"))
             if len(c.subclusters) != 2 or c.subclusters[0] is None:
                 raise ValueError(f"component {c.id} needs two sub-clusters (the second may be None)")
             for j, sub in enumerate(c.subclusters):
                 if sub is not None:
-                    _check_cluster(sub, d, f"sub-cluster {j} of component {c.id}")
+                    _check_cluster(sub, d, f"sub-cluster {j} of component {c.id}", arrays=False)
+                    clusters.append((sub, f"sub-cluster {j} of component {c.id}"))
             total = sum(s.support for s in c.subclusters if s is not None)
             if abs(total - c.support) > 1e-6 * max(1.0, c.support):
                 raise ValueError(f"component {c.id} has support {c.support} but its sub-clusters {total}")
+        # NaN or inf anywhere: one test of all the arrays, then the first bad cluster by name
+        if clusters and not (np.isfinite(np.stack([cl.mean for cl, _ in clusters])).all()
+                             and np.isfinite(np.concatenate([cl.factor for cl, _ in clusters], axis=1)).all()):
+            for cl, what in clusters:
+                _check_cluster(cl, d, what)
 
     @property
     def n_human(self) -> int:

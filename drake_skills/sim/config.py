@@ -6,6 +6,7 @@
       library: LibraryConfig   the skill library (drake_skills.library.config)
       decision: DecisionRule   when the gating decides (drake_skills.systems.decision_rule)
       controller, meshcat      gains and drawing
+      lcm: LcmConfig           channels, rates and the simulated bus (drake_skills.sim.lcm_config)
 
 Every node is a dataclass that is its own schema (a comment on every field) and
 validates itself in ``__post_init__``. :func:`load_config` reads a file in either of
@@ -22,6 +23,7 @@ from pydrake.common.yaml import yaml_load, yaml_load_typed
 
 from drake_skills._checks import validated
 from drake_skills.library.config import LibraryConfig
+from drake_skills.sim.lcm_config import LcmConfig
 from drake_skills.systems.decision_rule import DecisionRule
 
 #: Subject models of the simulated salad scenario (drake_skills.scenario.salad), the default first.
@@ -50,10 +52,10 @@ class MeshcatConfig:
     frames_per_second: float = 32.0
     # radius of the sphere drawn at the person's wrist (m)
     wrist_radius: float = 0.035
-    # camera position, metres (world): behind and left of the seated person
-    camera_position: list[float] = field(default_factory=lambda: [-1.9, -1.7, 1.9])
-    # point the camera looks at, metres (world): above the table centre
-    camera_target: list[float] = field(default_factory=lambda: [0.0, 0.1, 0.9])
+    # camera position, metres (world): behind and right of the seated person, framing the table
+    camera_position: list[float] = field(default_factory=lambda: [-1.45, -1.05, 1.55])
+    # point the camera looks at, metres (world): above the table, between the person and the robot
+    camera_target: list[float] = field(default_factory=lambda: [-0.2, 0.15, 0.9])
 
 
 @dataclass
@@ -92,10 +94,12 @@ class SimConfig:
     demos_per_task: int = 15
     # shrink factor of the calibrated workspace along z (Sec. 4.2.2)
     z_factor: float = 0.9
+    # the LCM interface (drake-skills demo --transport lcm, drake-skills control)
+    lcm: LcmConfig = field(default_factory=LcmConfig)
 
     def __post_init__(self):
         for name, kind in (("library", LibraryConfig), ("decision", DecisionRule), ("controller", ControllerConfig),
-                           ("meshcat", MeshcatConfig)):
+                           ("meshcat", MeshcatConfig), ("lcm", LcmConfig)):
             if not isinstance(getattr(self, name), kind):
                 raise ValueError(f"SimConfig.{name} must be a {kind.__name__}, "
                                  f"got {type(getattr(self, name)).__name__}")

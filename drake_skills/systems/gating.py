@@ -6,6 +6,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 from pydrake.common.value import AbstractValue
+
+from drake_skills.systems.shared import Shared
 from pydrake.systems.framework import Context, LeafSystem, State
 
 from drake_skills.library.incremental import SkillLibrary
@@ -18,7 +20,7 @@ GATING_PERIOD = 1.0 / 64.0
 
 
 @dataclass(frozen=True, eq=False)
-class ObservedMotion:
+class ObservedMotion(Shared):
     """The wrist samples seen since the trial start.
 
     Attributes
@@ -39,38 +41,98 @@ class ObservedMotion:
     def append(self, time: float, sample: np.ndarray) -> "ObservedMotion":
         """A new motion with one more sample (this one is not modified)."""
         sample = np.asarray(sample, float).reshape(1, -1)
-        samples = sample if self.n == 0 else np.vstack([self.samples, sample])
-        return ObservedMotion(np.append(self.times, time), samples)
+        samples = sample.copy() if self.n == 0 else np.vstack([self.samples, sample])
+        times = np.append(self.times, time)
+        samples.setflags(write=False)  # shared between copies of the state (see Shared)
+        times.setflags(write=False)
+        return ObservedMotion(times, samples)
+
+
+@dataclass(frozen=True)
+class Belief(Shared):
+    """One re-decision: what the library said about the motion so far.
+
+    Attributes
+    ----------
+    time : float
+        Simulation time (s).
+    status : str
+        "skill", "undecided" or "unknown" (:class:`~drake_skills.library.views.Recognition`).
+    best : int or None
+        The most probable component among those that explain the motion.
+    confidence : float
+        Its posterior probability.
+    phase : float
+        Its estimated fraction observed (NaN when unknown).
+    posterior : tuple of (int, float)
+        (component id, p(k | motion)) for the components that explain the motion.
+    """
+
+    time: float
+    status: str
+    best: int | None
+    confidence: float
+    phase: float
+    posterior: tuple = ()
 
 
 @dataclass(frozen=True, eq=False)
-class GatingDecision:
-    """The gating's state and output: what was observed and, once decided, the decision.
+class GatingDecision(Shared):
+    """The gating's state and output: what was observed, what the robot acts on, and why.
 
     Attributes
     ----------
     motion : ObservedMotion
-    decided : bool
     component : int or None
-        The chosen component id; None while pending and for "unknown".
-    responsibilities : dict
-        Component id -> p(k | w_h) (Eq. 5) at the decision; empty before.
+        The skill the robot executes now: set when the gating commits (the same skill
+        answered ``confirmations`` times in a row), changed when the answers switch to
+        another skill, None while nothing is committed or after giving up.
+    final : bool
+        The motion is over (or timed out) and the last answer is given.
+    status : str
+        "pending" while observing with nothing committed, "skill" while a skill is
+        committed, and at the end the final answer: "skill", "undecided" or "unknown".
     time : float
-        Simulation time of the decision (NaN before).
+        Simulation time the current ``component`` was set (commit or revision) or, when
+        final without a skill, of the final answer (NaN before).
+    commit_time : float
+        When the robot first committed in this trial (NaN if never).
+    revisions : int
+        How often the committed skill was changed or given up.
+    commits : tuple of int
+        The skills committed, in order.
+    beliefs : tuple of Belief
+        Every re-decision of the trial, in order (for plots and the recording).
+    responsibilities : dict
+        Component id -> p(k | w_h) (Eq. 5) at the last answer.
+    last_check : float
+        Time of the last re-decision (NaN before).
+    streak : tuple (answer, count)
+        The last answer (a component id, "unknown" or "undecided") and how often in a row.
     """
 
     motion: ObservedMotion = field(default_factory=ObservedMotion)
-    decided: bool = False
     component: int | None = None
-    responsibilities: dict = field(default_factory=dict)
+    final: bool = False
+    status: str = "pending"
     time: float = float("nan")
+    commit_time: float = float("nan")
+    revisions: int = 0
+    commits: tuple = ()
+    beliefs: tuple = ()
+    responsibilities: dict = field(default_factory=dict)
+    last_check: float = float("nan")
+    streak: tuple = (None, 0)
 
     @property
-    def status(self) -> str:
-        """``"pending"`` (still observing), ``"unknown"`` or ``"skill"``."""
-        if not self.decided:
-            return "pending"
-        return "unknown" if self.component is None else "skill"
+    def decided(self) -> bool:
+        """The final answer is given (the motion is over)."""
+        return self.final
+
+    @property
+    def belief(self) -> Belief | None:
+        """The last re-decision, or None."""
+        return self.beliefs[-1] if self.beliefs else None
 
 
 def motion_is_over(motion: ObservedMotion, rule: DecisionRule) -> bool:
@@ -85,7 +147,7 @@ def motion_is_over(motion: ObservedMotion, rule: DecisionRule) -> bool:
     if motion.n < 2:
         return False
     times, y = motion.times, motion.samples
-    if float(np.max(np.linalg.norm(y - y[0], axis=1))) < rule.min_travel:
+    if _travel(motion) < rule.min_travel:
         return False
     t_end = times[-1]
     if t_end - times[0] < rule.still_duration:
@@ -94,8 +156,13 @@ def motion_is_over(motion: ObservedMotion, rule: DecisionRule) -> bool:
     return bool(np.all(np.linalg.norm(window - y[-1], axis=1) <= rule.still_radius))
 
 
+def _travel(motion: ObservedMotion) -> float:
+    y = motion.samples
+    return float(np.max(np.linalg.norm(y - y[0], axis=1))) if motion.n else 0.0
+
+
 def should_decide(motion: ObservedMotion, rule: DecisionRule) -> bool:
-    """Decide now? At ``decision_time`` or ``timeout`` after the first sample, or when the motion is over."""
+    """Give the final answer now? At ``decision_time`` or ``timeout`` after the first sample, or when the motion is over."""
     if motion.n == 0:
         return False
     elapsed = motion.times[-1] - motion.times[0]
@@ -104,49 +171,104 @@ def should_decide(motion: ObservedMotion, rule: DecisionRule) -> bool:
     return elapsed >= rule.timeout - 1e-12 or motion_is_over(motion, rule)
 
 
-def recognize_motion(library: SkillLibrary, motion: ObservedMotion) -> tuple[int | None, dict]:
-    """Which component explains the motion (Eq. 12)?
+def should_redecide(state: GatingDecision, motion: ObservedMotion, time: float, rule: DecisionRule) -> bool:
+    """Re-decide from the prefix now? With anticipation, every ``redecide_period`` once the wrist has moved."""
+    if not rule.anticipate or state.final or motion.n < 2:
+        return False
+    if not np.isnan(state.last_check) and time - state.last_check < rule.redecide_period - 1e-9:
+        return False
+    return _travel(motion) >= rule.min_travel
+
+
+def recognize_motion(library: SkillLibrary, motion: ObservedMotion, *, whole: bool):
+    """The library's answer (a :class:`~drake_skills.library.views.Recognition`) for the motion so far.
 
     Parameters
     ----------
     library : SkillLibrary
         May be empty (then the answer is unknown).
     motion : ObservedMotion
-        Samples in the library's normalized units (Eq. 14 applied by the
-        normalizer): the library only resamples them.
+        Samples in the library's normalized units (Eq. 14 applied by the normalizer):
+        the library only resamples them.
+    whole : bool
+        The motion is complete (its weights are tested, ``observed_fraction=1``);
+        otherwise it is a prefix whose phase the library estimates.
 
     Returns
     -------
-    component : int or None
-        Component id, or None for unknown.
-    responsibilities : dict
-        Component id -> responsibility.
+    Recognition or None
+        None when there is nothing to recognize (empty library, no motion).
     """
-    if library.n_components == 0 or motion.n < 2:
-        return None, {}
-    y = motion.samples
-    if float(np.max(np.linalg.norm(y - y[0], axis=1))) <= 0.0:
-        return None, {}
-    rec = library.recognize(y, normalized=True, observed_fraction=1.0)
-    resp = {int(k): float(r) for k, r in zip(rec.ids, rec.responsibilities)}
-    return (None if rec.component is None else int(rec.component)), resp
+    if library.n_components == 0 or motion.n < 2 or _travel(motion) <= 0.0:
+        return None
+    return library.recognize(motion.samples, normalized=True, observed_fraction=1.0 if whole else None)
+
+
+def _belief(time: float, rec) -> Belief:
+    if rec is None:
+        return Belief(float(time), "unknown", None, 0.0, float("nan"))
+    post = tuple((int(k), float(p)) for k, p in zip(rec.ids, rec.posterior) if p > 0)
+    return Belief(float(time), rec.status, rec.best, rec.confidence, rec.phase, post)
+
+
+def _answer(b: Belief):
+    return b.best if b.status == "skill" else b.status
 
 
 def gating_step(state: GatingDecision, time: float, sample: np.ndarray, library: SkillLibrary,
                 rule: DecisionRule) -> GatingDecision:
-    """One update: record the sample and, when it is time, decide (once)."""
-    if state.decided:
+    """One update: record the sample, re-decide from the prefix when it is time, and answer finally at the end.
+
+    While the person moves (``rule.anticipate``), every ``redecide_period`` the
+    library recognizes the prefix (phase estimated); the gating commits to a skill
+    once it has been the answer ``confirmations`` times in a row, switches to
+    another skill the same way, and gives a committed skill up after as many
+    "unknown" answers ("undecided" changes nothing: wait for more of the motion).
+    When the motion is over (or at the timeout) the whole motion is recognized once
+    (``observed_fraction=1``, the test learning uses) and that answer is final: a
+    skill is executed, "unknown" or "undecided" makes the robot hold.
+    """
+    if state.final:
         return state
     motion = state.motion.append(time, sample)
-    if not should_decide(motion, rule):
-        return GatingDecision(motion)
-    component, resp = recognize_motion(library, motion)
-    log.debug("gating decided %s at t=%.3f after %d samples", component, time, motion.n)
-    return GatingDecision(motion, True, component, resp, float(time))
+    t = float(time)
+    if should_decide(motion, rule):
+        rec = recognize_motion(library, motion, whole=True)
+        b = _belief(t, rec)
+        comp = b.best if b.status == "skill" else None
+        changed = comp != state.component
+        revisions = state.revisions + (1 if changed and state.component is not None else 0)
+        commits = state.commits + ((comp,) if comp is not None and changed else ())
+        commit_time = state.commit_time if not np.isnan(state.commit_time) or comp is None else t
+        resp = {} if rec is None else {int(k): float(r) for k, r in zip(rec.ids, rec.responsibilities)}
+        log.debug("gating final %s (%s) at t=%.3f after %d samples", b.status, comp, t, motion.n)
+        return GatingDecision(motion, comp, True, b.status, t if changed or comp is None else state.time,
+                              commit_time, revisions, commits, state.beliefs + (b,), resp, t, (_answer(b), 1))
+    if not should_redecide(state, motion, t, rule):
+        return replace(state, motion=motion)
+    rec = recognize_motion(library, motion, whole=False)
+    b = _belief(t, rec)
+    ans = _answer(b)
+    count = state.streak[1] + 1 if state.streak[0] == ans else 1
+    resp = {} if rec is None else {int(k): float(r) for k, r in zip(rec.ids, rec.responsibilities)}
+    new = replace(state, motion=motion, beliefs=state.beliefs + (b,), responsibilities=resp, last_check=t,
+                  streak=(ans, count))
+    if count < rule.confirmations:
+        return new
+    if isinstance(ans, int) and ans != state.component:
+        first = state.component is None and np.isnan(state.commit_time)
+        log.debug("gating %s %d at t=%.3f (phase %.2f)", "commits to" if first else "switches to", ans, t, b.phase)
+        return replace(new, component=ans, status="skill", time=t, commits=state.commits + (ans,),
+                       commit_time=t if np.isnan(state.commit_time) else state.commit_time,
+                       revisions=state.revisions + (0 if state.component is None else 1))
+    if ans == "unknown" and state.component is not None:
+        log.debug("gating gives up %d at t=%.3f", state.component, t)
+        return replace(new, component=None, status="pending", time=t, revisions=state.revisions + 1)
+    return new
 
 
 class SkillGating(LeafSystem):
-    """Accumulates the normalized wrist and, once the motion is over, recognizes the skill.
+    """Accumulates the normalized wrist, answers while the person moves, and finally when the motion is over.
 
     .. pydrake_system::
 
@@ -157,12 +279,13 @@ class SkillGating(LeafSystem):
         - decision
 
     Every 1/64 s the input is appended to the observed motion (abstract
-    state). When the motion is over (:func:`motion_is_over`), at the rule's
-    decision time or at its timeout, ``library.recognize`` is called once.
-    ``decision`` is the :class:`GatingDecision`: its ``status`` ("pending",
-    "unknown", "skill"), the chosen component id (an int, None for unknown),
-    the responsibilities and the samples the decision was made on. A context
-    reset starts a new trial.
+    state); every ``rule.redecide_period`` the prefix is recognized and the
+    committed skill set, changed or given up (:func:`gating_step`); when the
+    motion is over (:func:`motion_is_over`), at the rule's decision time or at
+    its timeout, the whole motion is recognized once more and the answer is
+    final. ``decision`` is the :class:`GatingDecision`: the committed component
+    (an int, or None), ``status``, ``final``, the history of beliefs and the
+    samples. A context reset starts a new trial.
 
     Parameters
     ----------
@@ -204,7 +327,7 @@ class SkillGating(LeafSystem):
 
     def _update(self, context: Context, state: State) -> None:
         old = self.decision(context)
-        if old.decided:
+        if old.final:
             return
         new = gating_step(old, context.get_time(), self._wrist.Eval(context), self._library, self._rule)
         state.get_mutable_abstract_state(self._state).set_value(new)

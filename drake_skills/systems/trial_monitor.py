@@ -5,6 +5,8 @@ import math
 from dataclasses import dataclass
 
 from pydrake.common.value import AbstractValue
+
+from drake_skills.systems.shared import Shared
 from pydrake.systems.framework import Context, LeafSystem
 
 from drake_skills.systems.conditioner import Conditioning
@@ -15,18 +17,19 @@ PHASES = ("observing", "conditioning", "executing", "holding")
 
 
 @dataclass(frozen=True)
-class TrialStatus:
+class TrialStatus(Shared):
     """The phase of a trial and, once it is known, the simulation time at which the trial is over.
 
     Attributes
     ----------
     phase : str
-        ``"observing"`` (the gating has not decided), ``"conditioning"`` (a skill
-        was chosen, its trajectory is not computed yet), ``"executing"`` (the robot
-        plays it) or ``"holding"`` (unknown, or conditioning failed: the robot holds).
+        ``"observing"`` (nothing committed), ``"conditioning"`` (a skill was chosen,
+        its trajectory is not computed yet), ``"executing"`` (the robot plays it, also
+        while the person still moves) or ``"holding"`` (the final answer is unknown or
+        undecided, or conditioning failed: the robot holds).
     end_time : float or None
-        When the trial is over (s): the end of the trajectory plus the settle time,
-        or the decision plus the hold time; None while observing or conditioning.
+        When the trial is over (s): after the final decision, the end of the trajectory
+        plus the settle time, or the final decision plus the hold time; None before.
     """
 
     phase: str
@@ -44,15 +47,17 @@ class TrialStatus:
 def trial_status(decision: GatingDecision, conditioning: Conditioning, *, settle_time: float,
                  unknown_hold_time: float) -> TrialStatus:
     """The trial's phase and end from the gating's decision and the conditioner's result."""
-    if not decision.decided:
-        return TrialStatus("observing")
     if decision.component is None:
+        if not decision.final:
+            return TrialStatus("observing")
         return TrialStatus("holding", decision.time + unknown_hold_time)
-    if conditioning.component is None:
+    if conditioning.component != decision.component:
         return TrialStatus("conditioning")
     if conditioning.trajectory is None:  # conditioning failed: the robot holds as for unknown
-        return TrialStatus("holding", decision.time + unknown_hold_time)
-    return TrialStatus("executing", conditioning.trajectory.end_time + settle_time)
+        return TrialStatus("holding", (decision.time + unknown_hold_time) if decision.final else None)
+    if not (decision.final and conditioning.final):
+        return TrialStatus("executing")
+    return TrialStatus("executing", max(conditioning.trajectory.end_time, conditioning.time) + settle_time)
 
 
 class TrialMonitor(LeafSystem):

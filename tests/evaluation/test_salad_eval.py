@@ -25,7 +25,7 @@ use_agg()
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 TABLES = ("classification", "classification_matrix", "components_per_subject", "kl_vs_demos",
           "components_per_task", "components_per_task_matrix", "transfer", "response_vs_fraction",
-          "earliest_decision")
+          "earliest_decision", "anticipation")
 FIGURES = ("classification", "kl_vs_demos", "components_per_task", "transfer", "response_vs_fraction")
 
 
@@ -286,3 +286,16 @@ def test_cli_eval_salad_quick_writes_its_artifacts(tmp_path, capsys):
     assert summary["settings"]["n_subjects"] == SaladSettings.quick().n_subjects
     assert any((out / "cache").rglob("*.npz"))
     assert "## classification" in capsys.readouterr().out
+
+
+def test_anticipation_table_counts_four_outcomes_and_the_phase_error(reports):
+    """Prefixes recognized without the fraction: the four outcomes sum to one, and on whole motions the estimated
+    phase is within 0.1 of 1 (measured: 0.97-1.0)."""
+    rep = reports[1]
+    t = rep.tables["anticipation"]
+    assert t.columns[:5] == ["true observed fraction", "correct", "wrong", "unknown", "undecided"]
+    for row in t.rows:
+        assert abs(sum(row[1:5]) - 1.0) < 1e-9
+    full = [r for r in t.rows if r[0] == 1.0][0]
+    assert full[5] == pytest.approx(1.0, abs=0.1) and full[6] < 0.1
+    assert full[2] == 0.0  # no wrong answer on whole motions

@@ -605,3 +605,23 @@ def test_the_novelty_rule_is_chosen_in_one_place_and_can_be_swapped():
     assert fold_in(comps, st.scale, w, 1.0, 1.0, rule=novelty_rule(lib.config), **kw).created == ()
     step = fold_in(comps, st.scale, w, 1.0, 1.0, rule=EverythingIsNovel(), **kw)
     assert step.created == (kw["next_id"],) and len(step.components) == len(comps) + 1
+
+
+def test_observation_noise_is_learned_from_what_the_basis_cannot_hold():
+    """A wave finer than the basis: the learned noise grows past the floor, and a whole wave recognized with its
+    phase estimated is its skill (with the fixed floor of 0.05 its samples looked impossibly far from its own mean)."""
+    rng = np.random.default_rng(70)
+
+    def wave(phase):
+        t = np.linspace(0, 3, 300)
+        y = np.stack([6 * t / 3, 2 * np.sin(2 * np.pi * 3 * t + phase), 0.5 * t], axis=1)
+        return Demonstration(t=t, human=y + rng.normal(0, 0.01, y.shape), task="wave")
+
+    lib = SkillLibrary()
+    for _ in range(6):
+        lib.partial_fit(wave(rng.uniform(-0.3, 0.3)))
+    assert lib.observation_noise() > 5 * lib.config.observation_noise
+    fits = lib.config.basis_human.phi_uniform(100)
+    assert fits.shape == (100, lib.config.n_basis_human)
+    rec = lib.recognize(wave(0.1).human)  # whole motion, phase estimated
+    assert rec.status == "skill" and rec.phase > 0.9

@@ -164,3 +164,81 @@ def test_schema_1_and_2_files_load_with_their_representation_and_the_same_answer
     with pytest.raises(ValueError, match="not positive definite") as e:
         SkillLibrary.load(bad)
     assert "bad.npz" in str(e.value)
+
+
+def _npy_header_only(shape, dtype) -> bytes:
+    """An .npy entry that declares ``shape`` and ``dtype`` and holds no data."""
+    import io
+
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, {"descr": np.lib.format.dtype_to_descr(np.dtype(dtype)),
+                                               "fortran_order": False, "shape": tuple(shape)})
+    return buf.getvalue()
+
+
+def _peak_bytes_while(fn):
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        fn()
+    finally:
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+    return peak
+
+
+def test_a_file_declaring_huge_metadata_is_rejected_without_allocating_it(tmp_path):
+    """A metadata entry whose header claims 200 MB of text (under the 64 M character cap) but holds none."""
+    import zipfile
+
+    p = tmp_path / "huge_meta.npz"
+    with zipfile.ZipFile(p, "w") as z:
+        z.writestr("metadata.npy", _npy_header_only((), "<U50000000"))
+    with pytest.raises(ValueError, match="declares") as e:
+        peak = _peak_bytes_while(lambda: SkillLibrary.load(p))
+    assert "huge_meta.npz" in str(e.value)
+    peak = _peak_bytes_while(lambda: pytest.raises(ValueError, SkillLibrary.load, p))
+    assert peak < 10 * 2 ** 20  # 200 MB declared, under 10 MB used
+    with zipfile.ZipFile(p, "w") as z:  # above the cap: rejected by size alone
+        z.writestr("metadata.npy", _npy_header_only((), f"<U{storage.MAX_METADATA_CHARS + 1}"))
+    with pytest.raises(ValueError, match="metadata"):
+        SkillLibrary.load(p)
+
+
+def test_a_file_declaring_huge_arrays_that_agree_with_its_metadata_is_rejected_without_allocating(lib, tmp_path):
+    """Metadata of 50 components of 9,800 weights (a 770 MB pooled scatter) and array headers to match, no data."""
+    import zipfile
+
+    good = tmp_path / "good.npz"
+    lib.save(good)
+    with np.load(good) as z:
+        meta = json.loads(str(z["metadata"]))
+    cfg = dict(meta["config"])
+    meta.update(dim_human=1400, dim_robot=0, config=cfg)
+    d = 1400 * cfg["n_basis_human"]
+    assert d <= storage.MAX_WEIGHTS
+    comp = dict(meta["components"][0], rank=0, subclusters=[dict(meta["components"][0]["subclusters"][0], rank=0),
+                                                            None])
+    meta["components"] = [dict(comp, id=i) for i in range(50)]
+    meta["next_id"] = 50
+    shapes = {"means": (50, d), "factors": (d, 0), "sub_means": (50, 2, d), "sub_factors": (d, 0),
+              "total_mean": (d,), "total_m2": (d,), "pooled": (d, d)}
+    p = tmp_path / "huge_arrays.npz"
+    with zipfile.ZipFile(p, "w") as z:
+        z.writestr("metadata.npy", _npy_bytes(np.array(json.dumps(meta))))
+        for name, shape in shapes.items():
+            z.writestr(f"{name}.npy", _npy_header_only(shape, "<f8"))
+    with pytest.raises(ValueError, match=r"declares .* bytes\) but the file holds") as e:
+        SkillLibrary.load(p)
+    assert "huge_arrays.npz" in str(e.value)
+    peak = _peak_bytes_while(lambda: pytest.raises(ValueError, SkillLibrary.load, p))
+    assert peak < 20 * 2 ** 20  # 770 MB declared, under 20 MB used
+
+
+def _npy_bytes(a) -> bytes:
+    import io
+
+    buf = io.BytesIO()
+    np.lib.format.write_array(buf, a, allow_pickle=False)
+    return buf.getvalue()

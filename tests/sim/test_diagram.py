@@ -95,31 +95,51 @@ def test_taught_library_answers_unknown_for_an_untaught_task_and_the_trial_ends_
     assert known.component is not None and sim.label_of(known.component) == "bowl"
 
 
-def test_demo_command_writes_a_recording_that_renders_the_robot(tmp_path):
-    """`drake-skills demo` (short) -> demo.html -> headless Chromium screenshot shows the orange robot."""
+def test_demo_command_writes_a_recording_that_shows_the_robot_and_the_decision_colour(tmp_path):
+    """`drake-skills demo` (one trial, empty library: "unknown", held 8 s) -> demo.html -> headless Chromium.
+
+    The page opened at ``#t=`` just after the trial's final answer (the legend's link) shows the
+    orange robot and the magenta of "unknown" on the wrist and the lamp, held there for 8 s: the
+    colour track is on the geometry, ``<path>/<object>`` (on the group it is ignored, everything
+    stays grey and this fails). Opened at 0.1 s (still observing) no magenta shows.
+    """
     from drake_skills.cli import main
 
     assert Path(CHROMIUM).exists() or shutil.which("chromium"), "chromium is required: apt-get install chromium"
     out = tmp_path / "demo"
     config = tmp_path / "sim.yaml"  # the demo builds its library from SimConfig.library
-    config.write_text("seed: 4\nlibrary:\n  n_basis_robot: 18\n")
-    assert main(["demo", "--quick", "--trials", "3", "--seed", "0", "--config", str(config), "--out", str(out)]) == 0
+    config.write_text("seed: 4\nunknown_hold_time: 8.0\nlibrary:\n  n_basis_robot: 18\n")
+    assert main(["demo", "--quick", "--trials", "1", "--seed", "0", "--config", str(config), "--out", str(out)]) == 0
     html = out / "demo.html"
     assert html.stat().st_size > 100_000
-    assert json.loads((out / "summary.json").read_text())["seed"] == 0  # --seed wins over the file
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["seed"] == 0  # --seed wins over the file
+    (r,) = summary["results"]
+    assert r["trial"] == 1 and r["component"] is None and r["status"] == "unknown"
+    assert (out / "trials" / "trial_01.png").stat().st_size > 5_000
+    assert "drake-skills-legend" in html.read_text()
     lib = SkillLibrary.load(out / "library.npz")
     assert lib.n_components >= 1 and lib.config.n_basis_robot == 18
-    shot = tmp_path / "shot.png"
     chromium = CHROMIUM if Path(CHROMIUM).exists() else shutil.which("chromium")
-    subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
-                    "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                    "--no-first-run", f"--user-data-dir={tmp_path / 'profile'}", f"--screenshot={shot}",
-                    "--window-size=1280,800", "--virtual-time-budget=8000", html.resolve().as_uri()],
-                   check=True, capture_output=True, timeout=120, cwd=tmp_path)
-    import matplotlib.image
 
-    img = (matplotlib.image.imread(str(shot))[..., :3] * 255).astype(int)
-    assert img.shape[:2] == (800, 1280)
-    assert img.reshape(-1, 3).std(axis=0).max() > 20, "screenshot is blank"
-    robot = (np.abs(img - ROBOT_RGB).max(axis=-1) < 60).sum()
+    def screenshot(t: float):
+        import matplotlib.image
+
+        shot = tmp_path / f"shot_{t}.png"
+        subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
+                        "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                        "--no-first-run", f"--user-data-dir={tmp_path / 'profile'}", f"--screenshot={shot}",
+                        "--window-size=1280,800", "--virtual-time-budget=8000", html.resolve().as_uri() + f"#t={t}"],
+                       check=True, capture_output=True, timeout=240, cwd=tmp_path)
+        img = (matplotlib.image.imread(str(shot))[..., :3] * 255).astype(int)
+        assert img.shape[:2] == (800, 1280)
+        assert img.reshape(-1, 3).std(axis=0).max() > 20, "screenshot is blank"
+        scene = img[:700]  # above the legend panel (its swatches are magenta too)
+        magenta = ((scene[..., 0] > 120) & (scene[..., 2] > 100) & (scene[..., 1] < 0.45 * scene[..., 0])).sum()
+        return (np.abs(img - ROBOT_RGB).max(axis=-1) < 60).sum(), int(magenta)
+
+    robot, magenta = screenshot(round(r["start_time"] + r["decision_delay"] + 1.0, 2))
     assert robot > 1500, f"only {robot} robot-coloured pixels"
+    assert magenta > 400, f"only {magenta} pixels of the 'unknown' magenta: the decision colour is not shown"
+    _, before = screenshot(0.1)
+    assert before < 50, f"{before} magenta pixels while the person is still observed"

@@ -20,8 +20,9 @@ def _motion(demo):
     return ObservedMotion(demo.t.copy(), y)
 
 
-def _decision(demo, component, time=1.0):
-    return GatingDecision(_motion(demo), True, component, {}, time)
+def _decision(demo, component, time=1.0, final=True):
+    status = "skill" if component is not None else "unknown"
+    return GatingDecision(_motion(demo), component, final, status, time)
 
 
 def test_condition_robot_equals_predict_robot(library, demo):
@@ -109,3 +110,35 @@ def test_the_library_gets_normalized_samples_and_no_workspace(library, demo, mon
     k = library.recognize(demo.human, workspace=WORKSPACE).component
     condition_robot(library, k, _motion(demo), 0.0)
     assert seen["normalized"] is True and seen.get("workspace") is None
+
+
+def test_reconditions_on_the_growing_prefix_and_once_on_the_whole_motion(library, demo):
+    """Same component while the person moves: revisions on longer prefixes, same start; then the final one."""
+    k = library.recognize(demo.human, workspace=WORKSPACE, observed_fraction=1.0).component
+    motion = _motion(demo)
+    state = Conditioning()
+    starts, revisions, phases = [], [], []
+    for i, n in enumerate(range(40, motion.n, 10)):
+        prefix = ObservedMotion(motion.times[:n], motion.samples[:n])
+        t = 1.0 + i * 0.125
+        state = conditioning_step(state, GatingDecision(prefix, k, False, "skill", 1.0), library, t)
+        starts.append(state.trajectory.start_time)
+        revisions.append(state.trajectory.revision)
+        phases.append(state.trajectory.phase)
+    assert set(starts) == {1.0} and revisions == list(range(len(revisions)))
+    assert all(0 < p <= 1 for p in phases) and phases[-1] > phases[0]  # more of the motion seen
+    # not again within RECONDITION_PERIOD, nor without new samples
+    assert conditioning_step(state, GatingDecision(prefix, k, False, "skill", 1.0), library, t + 0.01) is state
+    final = conditioning_step(state, _decision(demo, k), library, t + 0.5)
+    assert final.final and final.trajectory.phase == 1.0 and final.trajectory.revision == revisions[-1] + 1
+    assert conditioning_step(final, _decision(demo, k), library, t + 1.0) is final
+
+
+def test_a_switch_starts_a_new_trajectory_and_giving_up_withdraws_it(library, demo):
+    ids = [c.id for c in library.components]
+    motion = _motion(demo)
+    a = conditioning_step(Conditioning(), GatingDecision(motion, ids[0], False, "skill", 1.0), library, 1.0)
+    b = conditioning_step(a, GatingDecision(motion, ids[1], False, "skill", 2.0), library, 2.0)
+    assert b.component == ids[1] and b.trajectory.start_time == 2.0 and b.trajectory.revision == 0
+    gone = conditioning_step(b, GatingDecision(motion, None, False, "pending", 2.5), library, 2.5)
+    assert gone.component is None and gone.trajectory is None and not gone.final
