@@ -31,10 +31,11 @@ def test_lcm_options_need_the_lcm_transport(tmp_path, capsys):
 def test_control_on_a_silent_bus_says_which_channels_are_silent(tmp_path, capsys):
     lib = tmp_path / "lib.npz"
     SkillLibrary().save(lib)
-    code = main(["control", "--library", str(lib), "--subject", "1", "--lcm-url", "memq://", "--wait", "0.1",
-                 "--out", str(tmp_path / "control")])
-    err = capsys.readouterr().err
+    code = main(["control", "--library", str(lib), "--subject", "1", "--subjects-model", "classic",
+                 "--lcm-url", "memq://", "--wait", "0.1", "--out", str(tmp_path / "control")])
+    out, err = capsys.readouterr()
     assert code == 1
+    assert "workspace of simulated subject 1 (classic)" in out
     assert "no message within 0.1 s on 'IIWA_STATUS' (lcmt_iiwa_status), 'DRAKE_SKILLS_WRIST'" in err
 
 

@@ -78,7 +78,7 @@ def test_letters_notebook_learns_five_letters_and_recognizes_held_out_ones(tmp_p
 
 
 def test_salad_notebook_shows_gating_decisions(tmp_path, kernel_dirs):
-    s = run_notebook("02_salad_library.ipynb", "N_DEMOS = 3\nN_TEACH = 2", tmp_path, kernel_dirs)
+    s = run_notebook("02_salad_library.ipynb", "N_DEMOS = 4\nN_TEACH = 3", tmp_path, kernel_dirs)
     assert s["components"] == 5
     assert s["new_task_unknown_before_teaching"] is True
     assert s["held_out_correct"] == s["held_out"] == 5

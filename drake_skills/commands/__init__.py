@@ -44,6 +44,20 @@ def add_config(parser: argparse.ArgumentParser) -> None:
                              "(drake_skills.library.config); default: the defaults")
 
 
+def add_subjects_model(parser: argparse.ArgumentParser, *, from_config: bool = False) -> None:
+    """Add ``--subjects-model``: how the simulated salad subjects move (drake_skills.scenario.salad).
+
+    ``from_config=True`` leaves it unset unless given (the ``--config`` file's model then holds).
+    """
+    from drake_skills.sim.config import SUBJECT_MODELS
+
+    default = SUBJECT_MODELS[0]
+    parser.add_argument("--subjects-model", choices=SUBJECT_MODELS, default=None if from_config else default,
+                        help="simulated subjects: 'styled' (people who differ in how they move) or 'classic' "
+                             "(one task geometry scaled per person, the first model); default "
+                             + (f"the config's, {default}" if from_config else default))
+
+
 #: Files that give the workspace of the demonstrations in their folder, in order of preference.
 WORKSPACE_FILES = ("workspace.json", "calibration.npz")
 

@@ -8,7 +8,7 @@ import sys
 import time
 from dataclasses import asdict, replace
 
-from drake_skills.commands import add_common, add_config
+from drake_skills.commands import add_common, add_config, add_subjects_model
 
 #: LCM's default URL (what drake-iiwa-driver uses without --lcm_url): multicast that stays on this host.
 DEFAULT_URL = "udpm://239.255.76.67:7667?ttl=0"
@@ -34,6 +34,7 @@ def register(sub) -> None:
                           "their workspace normalizes the wrist (Eq. 14)")
     who.add_argument("--subject", type=int, metavar="N",
                      help="use the workspace of simulated salad subject N (for a simulated station)")
+    add_subjects_model(p, from_config=True)
     p.add_argument("--trials", type=int, default=None, help="stop after this many trials (default: run until Ctrl-C)")
     p.add_argument("--duration", type=float, default=None, metavar="S",
                    help="stop after this many seconds of controller time (default: run until Ctrl-C)")
@@ -66,6 +67,7 @@ def run(args: argparse.Namespace) -> int:
 
     cfg = load_config(args.config)
     cfg = replace(cfg, seed=cfg.seed if args.seed is None else args.seed,
+                  subject_model=cfg.subject_model if args.subjects_model is None else args.subjects_model,
                   lcm=replace(cfg.lcm, url=args.lcm_url,
                               **({} if args.wait is None else {"wait_for_messages": args.wait})))
     if args.trials is not None and args.trials < 1 or args.duration is not None and not args.duration > 0:
@@ -80,8 +82,9 @@ def run(args: argparse.Namespace) -> int:
     else:
         from drake_skills.scenario.salad import generate_subject
 
-        workspace = generate_subject(args.subject, n_demos=1, seed=cfg.seed).workspace(z_factor=cfg.z_factor)
-        who = f"simulated subject {args.subject}"
+        workspace = generate_subject(args.subject, n_demos=1, seed=cfg.seed,
+                                     model=cfg.subject_model).workspace(z_factor=cfg.z_factor)
+        who = f"simulated subject {args.subject} ({cfg.subject_model})"
     if library.n_components == 0:
         print(f"warning: {args.library} has no components: every motion will be answered 'unknown'")
     diagram, handles = build_lcm_controller(cfg, library=library, workspace=workspace)

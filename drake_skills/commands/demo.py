@@ -7,7 +7,7 @@ import math
 import time
 from dataclasses import asdict, replace
 
-from drake_skills.commands import add_common, add_config
+from drake_skills.commands import add_common, add_config, add_subjects_model
 
 
 def register(sub) -> None:
@@ -23,6 +23,7 @@ def register(sub) -> None:
                    help="number of trials (default: the config's, 20; 8 with --quick)")
     p.add_argument("--subject", type=int, default=None,
                    help="1-based index of the simulated subject (default: the config's, 1)")
+    add_subjects_model(p, from_config=True)
     add_config(p)
     p.add_argument("--quick", action="store_true", help="a short run: 8 trials from 4 demonstrations per task")
     p.add_argument("--transport", choices=("direct", "lcm"), default="direct",
@@ -95,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
     from drake_skills.commands.demo_plots import legend_html, plot_trial
 
     cfg = load_config(args.config)
-    overrides = {"seed": args.seed, "subject": args.subject}
+    overrides = {"seed": args.seed, "subject": args.subject, "subject_model": args.subjects_model}
     if args.quick:
         overrides.update(trials=8, demos_per_task=4)
     if args.trials is not None:
@@ -116,10 +117,10 @@ def run(args: argparse.Namespace) -> int:
         make_sim = LcmCollaborationSim
     args.out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    data = generate_subject(cfg.subject, n_demos=cfg.demos_per_task, seed=cfg.seed)
+    data = generate_subject(cfg.subject, n_demos=cfg.demos_per_task, seed=cfg.seed, model=cfg.subject_model)
     workspace = data.workspace(z_factor=cfg.z_factor)
     t_gen = time.perf_counter() - t0
-    print(f"subject {cfg.subject}: {len(data.demos)} demonstrations generated in {t_gen:.1f} s; "
+    print(f"subject {cfg.subject} ({cfg.subject_model}): {len(data.demos)} demonstrations generated in {t_gen:.1f} s; "
           f"{cfg.trials} trials against an empty library"
           + (f"; controller and station over LCM ({cfg.lcm.url})" if make_sim is not None else ""))
     meshcat = make_meshcat()
@@ -154,7 +155,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"simulated {summary.simulated_seconds:.1f} s in {summary.wall_seconds:.1f} s wall time")
     library.save(args.out / "library.npz")
     (args.out / "summary.json").write_text(json.dumps(
-        {"subject": cfg.subject, "seed": cfg.seed, "transport": args.transport,
+        {"subject": cfg.subject, "subject_model": cfg.subject_model, "seed": cfg.seed, "transport": args.transport,
          **({"lcm": asdict(cfg.lcm)} if make_sim is not None else {}), **summary.dict()}, indent=2))
     if args.meshcat:
         print(f"meshcat: open {meshcat.web_url()} to replay the run; Ctrl-C to stop")

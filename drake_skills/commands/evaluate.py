@@ -9,7 +9,7 @@ from pathlib import Path
 
 
 def register(sub) -> None:
-    from drake_skills.commands import add_common, add_config
+    from drake_skills.commands import add_common, add_config, add_subjects_model
     from drake_skills.evaluation.common import available_workers
 
     p = sub.add_parser("eval", help="run the experiments (letters, salad, sensitivity, interaction, scale) and write "
@@ -39,6 +39,7 @@ def register(sub) -> None:
 
     q = esub.add_parser("salad", help="Sec. 4.2: personalized libraries, transfer, robot response error")
     common(q, "salad", 100)
+    add_subjects_model(q)
     q.add_argument("--subjects", type=int, default=None, help="number of simulated subjects (default 10)")
     q.add_argument("--demos", type=int, default=None, help="demonstrations per task and subject (default 15)")
     q.add_argument("--data-seed", type=int, default=0, help="seed of the simulated data set (default 0)")
@@ -47,6 +48,7 @@ def register(sub) -> None:
     q = esub.add_parser("sensitivity", help="how much room the defaults have: the learned scale's prior, the "
                                             "test quantiles and the raw arc length, on letters and salad at once")
     common(q, "sensitivity", 100)
+    add_subjects_model(q)
     q.add_argument("--splits", type=int, default=None, help="salad train/test splits per subject (default 10)")
     q.set_defaults(func=run_sensitivity)
 
@@ -155,7 +157,7 @@ def run_salad(args: argparse.Namespace) -> int:
     t0 = time.time()
     base = SaladSettings.quick(seed=args.seed) if args.quick else SaladSettings(seed=args.seed)
     overrides = {"trials": args.trials, "n_subjects": args.subjects, "n_demos": args.demos}
-    s = replace(base, data_seed=args.data_seed, library=_library(args),
+    s = replace(base, data_seed=args.data_seed, library=_library(args), subject_model=args.subjects_model,
                 **{k: v for k, v in overrides.items() if v is not None})  # validated again
     rep = evaluate_salad(s, workers=args.workers, progress=not args.no_progress, cache_dir=args.out / "cache")
     rep.summary["command"] = " ".join(["drake-skills", "eval", "salad"] + sys.argv[3:])
@@ -201,7 +203,8 @@ def run_sensitivity(args: argparse.Namespace) -> int:
     t0 = time.time()
     base = SensitivitySettings.quick(seed=args.seed) if args.quick else SensitivitySettings(seed=args.seed)
     overrides = {"letter_orders": args.trials, "salad_splits": args.splits}
-    s = replace(base, library=_library(args), **{k: v for k, v in overrides.items() if v is not None})
+    s = replace(base, library=_library(args), subject_model=args.subjects_model,
+                **{k: v for k, v in overrides.items() if v is not None})
     rep = evaluate_sensitivity(s, workers=args.workers, progress=not args.no_progress,
                                cache_dir=args.out / "cache")
     rep.summary["command"] = " ".join(["drake-skills", "eval", "sensitivity"] + sys.argv[3:])

@@ -10,20 +10,23 @@ SCENARIOS = ("salad",)
 
 
 def register(sub) -> None:
-    from drake_skills.commands import add_common
+    from drake_skills.commands import add_common, add_subjects_model
 
     p = sub.add_parser(
         "generate", help="generate simulated demonstrations (the salad scenario)",
         description="Generate the simulated salad scenario of the paper (Sec. 4.2): per subject, the calibration "
                     "half circles and demonstrations of the five tasks (human wrist + IIWA7 joints from Drake "
-                    "inverse kinematics). Writes OUT/<subject>/<task>_<nn>.npz, OUT/<subject>/calibration.npz, "
-                    "OUT/manifest.json and OUT/README.txt.")
+                    "inverse kinematics). With the styled subject model (the default) people differ in how they "
+                    "move: handedness, elbow, path, stand-up style, posture, speed and pauses, tracker "
+                    "(drake_skills.scenario.salad_styles). Writes OUT/<subject>/<task>_<nn>.npz, "
+                    "OUT/<subject>/calibration.npz, OUT/manifest.json (with each subject's style) and OUT/README.txt.")
     p.add_argument("scenario", choices=SCENARIOS, help="what to generate")
     p.add_argument("--subjects", type=int, default=10, help="number of subjects (default 10)")
     p.add_argument("--demos", type=int, default=15, help="demonstrations per task and subject (default 15)")
     p.add_argument("--tasks", nargs="+", default=None, metavar="TASK",
                    help="subset of the tasks board tomato bowl dressing standup (default all)")
     p.add_argument("--csv", action="store_true", help="also write each demonstration as CSV")
+    add_subjects_model(p)
     add_common(p, "generate")
     p.set_defaults(func=run)
 
@@ -53,7 +56,9 @@ def _remove_previous(out: Path) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from drake_skills.data.demos import save_calibration, save_csv, save_npz
-    from drake_skills.scenario.salad import SLOPPY_SUBJECTS, TASKS, generate_subject
+    from dataclasses import asdict
+
+    from drake_skills.scenario.salad import TASKS, generate_subject
 
     tasks = tuple(args.tasks) if args.tasks else TASKS
     unknown = [t for t in tasks if t not in TASKS]
@@ -64,11 +69,12 @@ def run(args: argparse.Namespace) -> int:
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     _remove_previous(out)
-    manifest = {"scenario": args.scenario, "seed": args.seed, "subjects": [], "tasks": list(tasks),
+    manifest = {"scenario": args.scenario, "subject_model": args.subjects_model, "seed": args.seed, "subjects": [],
+                "tasks": list(tasks),
                 "demos_per_task": args.demos, "rate_hz": 150.0, "files": []}
     start = time.perf_counter()
     for i in range(1, args.subjects + 1):
-        data = generate_subject(i, args.demos, args.seed, tasks)
+        data = generate_subject(i, args.demos, args.seed, tasks, args.subjects_model)
         sdir = out / data.subject.name
         save_calibration(sdir / "calibration.npz", {"xy": data.calibration[0], "zy": data.calibration[1]})
         for demo in data.demos:
@@ -79,20 +85,26 @@ def run(args: argparse.Namespace) -> int:
             manifest["files"].append({"path": str(rel), "subject": demo.subject, "task": demo.task,
                                       "samples": demo.n_samples, "duration": round(demo.duration, 4)})
         s = data.subject
+        style = None if s.style is None else json.loads(json.dumps(asdict(s.style)),
+                                                        parse_float=lambda x: round(float(x), 4))
         manifest["subjects"].append({"name": s.name, "arm_length": round(s.arm_length, 4), "sloppy": s.sloppy,
-                                     "workspace": data.workspace(z_factor=0.9).dict()})
+                                     "style": style, "workspace": data.workspace(z_factor=0.9).dict()})
+        habits = "" if s.style is None else (f" {s.style.hand}-handed, elbow {s.style.elbow}, stands up by "
+                                               f"{s.style.standup}, {s.style.tracker}")
         print(f"[{i}/{args.subjects}] {s.name}: {len(data.demos)} demonstrations"
-              f"{' (sloppy)' if s.sloppy else ''}, {time.perf_counter() - start:.1f} s", flush=True)
+              f"{' (sloppy)' if s.sloppy else ''}{habits}, {time.perf_counter() - start:.1f} s", flush=True)
     (out / "manifest.json").write_text(json.dumps(manifest, indent=1))
     (out / "README.txt").write_text(
-        "Simulated salad scenario (drake-skills generate salad, seed %d).\n\n"
-        "<subject>/<task>_<nn>.npz  one demonstration: t (T,) s at 150 Hz, human (T, 3) right wrist in m\n"
-        "                           (world frame of models/salad/scene.yaml), robot (T, 7) IIWA7 joints in rad,\n"
+        "Simulated salad scenario (drake-skills generate salad --subjects-model %s, seed %d).\n\n"
+        "<subject>/<task>_<nn>.npz  one demonstration: t (T,) s at 150 Hz, human (T, 3) the working wrist in m\n"
+        "                           (world frame of models/salad/scene.yaml; the right one unless the subject's\n"
+        "                           style says left-handed), robot (T, 7) IIWA7 joints in rad,\n"
         "                           task and subject labels. Load with drake_skills.data.demos.load_npz.\n"
         "<subject>/calibration.npz  the calibration half circles xy and zy (T_i, 3) of Sec. 4.2.2.\n"
-        "manifest.json              subjects (arm length, sloppy, workspace), tasks and files.\n\n"
-        "Tasks: %s. Sloppy subjects: %s.\n" % (args.seed, ", ".join(tasks),
-                                               ", ".join(f"subject{k}" for k in SLOPPY_SUBJECTS)))
+        "manifest.json              subjects (arm length, sloppy, style, workspace), tasks and files.\n\n"
+        "Tasks: %s. Sloppy subjects: %s.\n" % (args.subjects_model, args.seed, ", ".join(tasks),
+                                               ", ".join(x["name"] for x in manifest["subjects"] if x["sloppy"])
+                                               or "none"))
     n = len(manifest["files"])
     print(f"wrote {n} demonstrations of {args.subjects} subject(s) to {out} in {time.perf_counter() - start:.1f} s")
     return 0

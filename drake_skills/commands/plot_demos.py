@@ -1,4 +1,9 @@
-"""``drake-skills plot-demos DIR``: human wrist trajectories per task, top and front views (Fig. 5(b))."""
+"""``drake-skills plot-demos DIR``: human wrist trajectories per task, top and front views (Fig. 5(b)).
+
+``demos.png`` shows one subject, a colour per task (the paper's Fig. 5(b)); with more
+than one subject under DIR, ``tasks.png`` shows every task across the subjects, a colour
+per subject: how much the people differ in each task.
+"""
 from __future__ import annotations
 
 import argparse
@@ -16,10 +21,11 @@ def register(sub) -> None:
         "plot-demos", help="plot the human wrist trajectories of one subject (top and front views)",
         description="Plot the human wrist trajectories of the demonstrations under DIR for one subject, one "
                     "colour per task, seen from the top (x-y) and from the front (y-z), like the paper's "
-                    "Fig. 5(b). Writes OUT/demos.png.")
+                    "Fig. 5(b) (OUT/demos.png); with more than one subject, also every task across the subjects, "
+                    "one colour per subject (OUT/tasks.png: the spread per task).")
     p.add_argument("demos_dir", type=Path, metavar="DIR", help="directory of demonstrations (searched recursively)")
     p.add_argument("--subject", default=None, help="subject to plot (default: the first one found)")
-    add_out(p, "plot-demos", "demos.png")
+    add_out(p, "plot-demos", "demos.png and tasks.png")
     p.set_defaults(func=run)
 
 
@@ -58,18 +64,67 @@ def plot_demos(demos, title: str = ""):
         if h.shape[1] >= 3:
             front.plot(h[:, 1], h[:, 2], color=c, lw=0.8, alpha=0.8)
             front.plot(h[0, 1], h[0, 2], "k.", ms=3)
+    top.set_title("top view")
+    front.set_title("front view (from behind the person)")
+    _views(top, front)
+    top.legend(loc="best", fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def _views(top, front):
     # the person sits at -x looking toward +x: show y increasing to the left, as seen by the person
     top.set_xlabel("y [m] (person's left ←)")
     top.set_ylabel("x [m] (away from the person ↑)")
-    top.set_title("top view")
     front.set_xlabel("y [m] (person's left ←)")
     front.set_ylabel("z [m]")
-    front.set_title("front view (from behind the person)")
     for ax in (top, front):
         ax.invert_xaxis()
         ax.set_aspect("equal", adjustable="datalim")
         ax.grid(alpha=0.3)
-    top.legend(loc="best", fontsize=8)
+
+
+def plot_tasks_across_subjects(demos, title: str = ""):
+    """Figure with one column per task: top (x-y) and front (y-z) views, a colour per subject.
+
+    Parameters
+    ----------
+    demos : list of Demonstration
+        With ``task`` and ``subject`` labels and ``human`` of shape (T, 3).
+    title : str
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    found = list(dict.fromkeys(d.task or "unlabelled" for d in demos))
+    tasks = [t for t in TASK_COLOURS if t in found] + [t for t in found if t not in TASK_COLOURS]
+    subjects = sorted({d.subject or "?" for d in demos}, key=lambda s: (len(s), s))
+    demos = sorted(demos, key=lambda d: subjects.index(d.subject or "?"))
+    cmap = plt.get_cmap("tab10" if len(subjects) <= 10 else "tab20")
+    colour = {s: cmap(i % cmap.N) for i, s in enumerate(subjects)}
+    fig, axes = plt.subplots(2, len(tasks), figsize=(4.2 * len(tasks), 8), squeeze=False)
+    for j, task in enumerate(tasks):
+        top, front = axes[0, j], axes[1, j]
+        seen = set()
+        for d in demos:
+            if (d.task or "unlabelled") != task:
+                continue
+            s, h = d.subject or "?", d.human
+            top.plot(h[:, 1], h[:, 0], color=colour[s], lw=0.7, alpha=0.8, label=s if s not in seen else None)
+            seen.add(s)
+            if h.shape[1] >= 3:
+                front.plot(h[:, 1], h[:, 2], color=colour[s], lw=0.7, alpha=0.8)
+        top.set_title(f"{task}: top view")
+        front.set_title(f"{task}: front view")
+        _views(top, front)
+    axes[0, 0].legend(loc="best", fontsize=7)
     fig.suptitle(title)
     fig.tight_layout()
     return fig
@@ -81,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
     scan = scan_dir(args.demos_dir)
     for note in scan.notes():
         print(f"note: {note}")
-    demos = scan.demos
+    everyone = demos = scan.demos
     if not demos:
         raise ValueError(f"no demonstrations (.npz or .csv) found under '{args.demos_dir}'")
     subjects = sorted({d.subject for d in demos if d.subject}, key=lambda s: (len(s), s))
@@ -95,4 +150,10 @@ def run(args: argparse.Namespace) -> int:
     path = args.out / "demos.png"
     fig.savefig(path, dpi=110)
     print(f"wrote {path} ({len(demos)} demonstrations of {subject or 'all subjects'})")
+    if len(subjects) > 1:
+        fig = plot_tasks_across_subjects(everyone, title=f"{args.demos_dir}: every task across {len(subjects)} "
+                                                         f"subjects ({len(everyone)} demonstrations)")
+        path = args.out / "tasks.png"
+        fig.savefig(path, dpi=90)
+        print(f"wrote {path} (each task across {len(subjects)} subjects)")
     return 0

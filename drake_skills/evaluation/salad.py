@@ -95,7 +95,7 @@ def evaluate_salad(settings: SaladSettings | None = None, *, workers: int = 1, p
     tc_long, tc_mat, tc_summary = task_components_tables(s, tc)
     tr_t, tr_acc = transfer_table(s, names, tr)
 
-    rep = EvalReport("Salad (Sec. 4.2)", {
+    rep = EvalReport(f"Salad (Sec. 4.2), {s.subject_model} subjects", {
         "classification": cls_long, "classification_matrix": cls_mat, "components_per_subject": comp,
         "kl_vs_demos": kl_t, "components_per_task": tc_long, "components_per_task_matrix": tc_mat,
         "transfer": tr_t, "response_vs_fraction": resp, "earliest_decision": early,

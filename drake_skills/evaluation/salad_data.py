@@ -1,9 +1,10 @@
 """The salad experiment's settings and data: the simulated subjects, generated once and cached.
 
 The simulated salad scenario (:mod:`drake_skills.scenario.salad`), ``n_subjects``
-subjects x 5 tasks x ``n_demos`` demonstrations, is generated once (in parallel) and
-cached as ``.npz`` files under ``cache_dir``, keyed by the data seed and a hash of the
-files the generator depends on, so a retuned scene is regenerated.
+subjects x 5 tasks x ``n_demos`` demonstrations of one subject model, is generated once
+(in parallel) and cached as ``.npz`` files under ``cache_dir``, keyed by the subject
+model, the data seed and a hash of the files the generator depends on, so a retuned
+scene is regenerated.
 """
 from __future__ import annotations
 
@@ -20,13 +21,14 @@ from drake_skills.data.demos import load_calibration, load_npz, save_calibration
 from drake_skills.data.workspace import Workspace
 from drake_skills.evaluation.common import run_trials
 from drake_skills.library.config import LibraryConfig
-from drake_skills.scenario.salad import TASKS, SubjectData, generate_subject, make_subject
+from drake_skills.scenario.salad import SUBJECT_MODELS, TASKS, SubjectData, generate_subject, make_subject
 from drake_skills.sim.models import models_dir
 
 log = logging.getLogger(__name__)
 
 #: Files the generated data depends on (their hash keys the cache).
 _DATA_SOURCES = ("models/salad/scene.yaml", "models/iiwa7/iiwa7.sdf", "drake_skills/scenario/salad.py",
+                 "drake_skills/scenario/salad_subject.py", "drake_skills/scenario/salad_styles.py",
                  "drake_skills/sim/salad_robot.py", "drake_skills/sim/models.py")
 _DEFAULT_FRACTIONS = tuple(round(0.1 * i, 1) for i in range(1, 11))
 
@@ -37,6 +39,8 @@ class SaladSettings:
 
     #: Simulated subjects 1..n_subjects (subjects 3 and 7 are sloppy).
     n_subjects: int = 10
+    #: How the simulated people move: "styled" or "classic" (drake_skills.scenario.salad).
+    subject_model: str = SUBJECT_MODELS[0]
     #: Demonstrations per task and subject.
     n_demos: int = 15
     #: Tasks (subset of drake_skills.scenario.salad.TASKS).
@@ -115,6 +119,8 @@ class SaladSettings:
         positive_int("trials", self.trials)
         positive_int("kl_samples", self.kl_samples)
         positive_int("em_n_init", self.em_n_init)
+        if self.subject_model not in SUBJECT_MODELS:
+            raise ValueError(f"SaladSettings.subject_model must be one of {SUBJECT_MODELS}, got {self.subject_model!r}")
         if self.data_seed < 0:
             raise ValueError(f"SaladSettings.data_seed must be non-negative, got {self.data_seed!r}")
         unknown = [t for t in self.tasks if t not in TASKS]
@@ -174,6 +180,7 @@ class _DataJob:
     data_seed: int
     tasks: tuple[str, ...]
     cache_root: Path | None
+    subject_model: str
 
 
 def _load_or_generate(job: _DataJob, index: int) -> SubjectData:
@@ -184,7 +191,7 @@ def _load_or_generate(job: _DataJob, index: int) -> SubjectData:
     if sdir is not None and (sdir / "calibration.npz").is_file() and all(
             (sdir / f"{n}.npz").is_file() for n in names):
         try:
-            subject = make_subject(index, seed)
+            subject = make_subject(index, seed, job.subject_model)
             cal = load_calibration(sdir / "calibration.npz")
             demos = []
             for n in names:
@@ -194,7 +201,7 @@ def _load_or_generate(job: _DataJob, index: int) -> SubjectData:
             return SubjectData(subject=subject, calibration=[cal["xy"], cal["zy"]], demos=demos)
         except (ValueError, KeyError) as exc:  # a damaged cache is regenerated
             log.warning("regenerating subject %d: cached data unusable (%s)", index, exc)
-    data = generate_subject(index, n_demos, seed, tasks)
+    data = generate_subject(index, n_demos, seed, tasks, job.subject_model)
     if sdir is not None:
         sdir.mkdir(parents=True, exist_ok=True)
         save_calibration(sdir / "calibration.npz", {"xy": data.calibration[0], "zy": data.calibration[1]})
@@ -210,17 +217,19 @@ def load_salad_data(settings: SaladSettings, *, workers: int = 1, progress: bool
     Parameters
     ----------
     settings : SaladSettings
-        ``n_subjects``, ``n_demos``, ``tasks`` and ``data_seed`` are used.
+        ``n_subjects``, ``n_demos``, ``tasks``, ``subject_model`` and ``data_seed`` are used.
     workers : int
         Processes generating subjects in parallel.
     cache_dir : str or Path, optional
         Demonstrations are cached under
-        ``cache_dir/salad-<hash>/seed<data_seed>/subject<i>/<task>_<nn>.npz`` (no pickle).
+        ``cache_dir/salad-<hash>/<subject_model>/seed<data_seed>/subject<i>/<task>_<nn>.npz`` (no pickle).
     """
     root = None
     if cache_dir is not None:
-        root = Path(cache_dir) / f"salad-{data_cache_key()}" / f"seed{int(settings.data_seed)}"
-    job = _DataJob(int(settings.n_demos), int(settings.data_seed), tuple(settings.tasks), root)
+        root = (Path(cache_dir) / f"salad-{data_cache_key()}" / settings.subject_model
+                / f"seed{int(settings.data_seed)}")
+    job = _DataJob(int(settings.n_demos), int(settings.data_seed), tuple(settings.tasks), root,
+                   settings.subject_model)
     return run_trials(_load_or_generate, range(1, int(settings.n_subjects) + 1), job, workers=workers,
                       desc="salad: data", progress=progress)
 

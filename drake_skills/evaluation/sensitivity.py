@@ -30,7 +30,7 @@ from drake_skills.evaluation.common import EvalReport, Table, run_trials, stream
 from drake_skills.evaluation.labeled import CORRECT, WRONG, LabeledLibrary
 from drake_skills.evaluation.salad_data import SaladSettings, load_salad_data
 from drake_skills.library.config import LibraryConfig
-from drake_skills.scenario.salad import SubjectData
+from drake_skills.scenario.salad import SUBJECT_MODELS, SubjectData
 
 STREAM_LETTERS, STREAM_SALAD = 31, 32
 
@@ -58,6 +58,8 @@ class SensitivitySettings:
     salad_splits: int = 10
     #: Simulated subjects.
     n_subjects: int = 10
+    #: How they move: "styled" or "classic" (drake_skills.scenario.salad).
+    subject_model: str = SUBJECT_MODELS[0]
     #: Demonstrations per task and subject (10 train, the rest test).
     n_demos: int = 15
     #: Training demonstrations per task.
@@ -74,6 +76,9 @@ class SensitivitySettings:
             raise ValueError(f"SensitivitySettings.library must be a LibraryConfig, got {type(self.library).__name__}")
         if not self.configs:
             raise ValueError("SensitivitySettings.configs: no configurations to compare")
+        if self.subject_model not in SUBJECT_MODELS:
+            raise ValueError(f"SensitivitySettings.subject_model must be one of {SUBJECT_MODELS}, "
+                             f"got {self.subject_model!r}")
         for overrides in self.configs.values():
             self.config(overrides)  # bad overrides fail here, before any work
         for name in ("letter_orders", "salad_splits", "n_subjects", "n_demos"):
@@ -157,7 +162,8 @@ def evaluate_sensitivity(settings: SensitivitySettings | None = None, *, workers
     """Run the experiment; one table row per configuration."""
     s = settings if settings is not None else SensitivitySettings()
     letters = load_lasa(DEFAULT_LETTERS)
-    salad = load_salad_data(SaladSettings(n_subjects=s.n_subjects, n_demos=s.n_demos, data_seed=s.data_seed),
+    salad = load_salad_data(SaladSettings(n_subjects=s.n_subjects, n_demos=s.n_demos, data_seed=s.data_seed,
+                                          subject_model=s.subject_model),
                             workers=workers, progress=progress, cache_dir=cache_dir)
     ctx = SensitivityContext(s, tuple(letters), lasa_workspace(letters), tuple(sorted({d.task for d in letters})),
                              tuple(salad))

@@ -1,17 +1,28 @@
 """The simulated salad scenario (paper Sec. 4.2, Fig. 5): 10 subjects x 5 tasks.
 
-Human
-    The right wrist of a seated person, 3-D positions in metres (world frame of
-    ``models/salad/scene.yaml``) at 150 Hz. Every motion starts at the subject's rest
+Two subject models (:data:`SUBJECT_MODELS`):
+
+``"styled"`` (the default; :mod:`drake_skills.scenario.salad_styles`)
+    People who differ in how they move: they reach for the objects where they stand on
+    the table, from a seat and posture of their own, with the left or the right hand,
+    elbow up or down, over or around the bowl, standing up by leaning forward, pushing
+    off the table or turning, with pauses, and some of them tracked by a noisy camera.
+``"classic"`` (the first model, kept for comparison)
+    One task geometry scaled per person: every motion starts at the subject's rest
     position on the table edge, first lifts the hand the same way for every task (the
-    shared first segment, about a quarter of the path), then bends toward the task's goal:
-    the knife (board), the tomato, the bowl, the shelf (dressing), or up and back as the
-    person rises (standup). The path is timed by a skewed minimum-jerk profile (bell-shaped
-    speed), and the hand then holds still while the robot completes the handover.
+    shared first segment, about a quarter of the path), then bends toward the task's
+    nominal goal (``tasks.<name>.reach`` of the scene): the knife (board), the tomato,
+    the bowl, the shelf (dressing), or up and back as the person rises (standup).
     Subjects differ in arm length, workspace size, seated position, start offset, speed
-    profile, path curvature, personal style per task and noise. Subjects 3 and 7 are
-    sloppy (:data:`SLOPPY_SUBJECTS`): large via-point jitter and two alternating path
-    styles, so their personal libraries need more than five components.
+    profile, path curvature, personal goal offsets of a few centimetres and noise.
+    Subjects 3 and 7 are sloppy (:data:`SLOPPY_SUBJECTS`): large via-point jitter and two
+    alternating path styles.
+
+Human
+    One wrist of a seated person, 3-D positions in metres (world frame of
+    ``models/salad/scene.yaml``) at 150 Hz. The path is timed by a skewed minimum-jerk
+    profile (bell-shaped speed), and the hand then holds still while the robot completes
+    the handover.
 Calibration (Sec. 4.2.2)
     Half circles at arm's reach (arm length + torso lean) in the x-y plane (at table
     height, centred at the shoulder) and in the z-y plane (in front of the body, from
@@ -35,168 +46,37 @@ objects (``data/``, the bottom layer, imports nothing of it).
 """
 from __future__ import annotations
 
-import functools
 import logging
 from typing import Callable
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from drake_skills.data.demonstration import Demonstration
-from drake_skills.data.workspace import Workspace
-from drake_skills.sim.models import IIWA7_JOINT_LIMITS, IIWA7_VELOCITY_LIMITS, load_scene_config
+from drake_skills.scenario import salad_styles
+from drake_skills.scenario.salad_subject import (_STREAM_CALIBRATION, _STREAM_DEMO, _STREAM_SUBJECT,
+                                                 _TASK_DURATION, RATE_HZ, SLOPPY_SUBJECTS, TABLE_TOP_Z, TASKS,
+                                                 ReachPlan, Subject, SubjectData, _bezier, _calibration_z, _rng,
+                                                 _scene, _unit, min_jerk)
+from drake_skills.sim.config import SUBJECT_MODELS
+from drake_skills.sim.models import IIWA7_JOINT_LIMITS, IIWA7_VELOCITY_LIMITS
 from drake_skills.sim.salad_robot import salad_robot
 
+__all__ = ["RATE_HZ", "SLOPPY_SUBJECTS", "SUBJECT_MODELS", "TABLE_TOP_Z", "TASKS", "ReachPlan", "Subject",
+           "SubjectData", "calibration_motions", "generate_salad", "generate_subject", "make_demonstration",
+           "make_subject", "min_jerk", "plan_reach", "robot_motion"]
+
 log = logging.getLogger(__name__)
-
-#: The five collaborative tasks of the paper, in a fixed order (seeds depend on it).
-TASKS = ("board", "tomato", "bowl", "dressing", "standup")
-#: Sampling rate of the motion capture system, Hz.
-RATE_HZ = 150.0
-#: 1-based indices of the sloppy subjects.
-SLOPPY_SUBJECTS = (3, 7)
-#: Height of the table top, metres (world); the wrist stays 1.5 cm above it or higher.
-TABLE_TOP_Z = 0.75
-
-# Relative reach duration per task (standing up and reaching to the shelf take longer).
-_TASK_DURATION = {"board": 0.9, "tomato": 1.0, "bowl": 1.0, "dressing": 1.15, "standup": 1.35}
-# Random streams (second seed word after the subject index).
-_STREAM_SUBJECT, _STREAM_DEMO, _STREAM_CALIBRATION = 0, 1, 2
+#: The subject model of :func:`make_subject` and :func:`generate_subject` when none is named.
+DEFAULT_SUBJECT_MODEL = SUBJECT_MODELS[0]
 
 
-@dataclass(eq=False)
-class Subject:
-    """One simulated person.
-
-    Attributes
-    ----------
-    name : str
-        ``"subject1"`` .. ``"subject10"``.
-    arm_length : float
-        Shoulder to wrist, metres.
-    index : int
-        1-based subject number.
-    reach : float
-        Arm length plus torso lean: the calibration radius, metres.
-    workspace_scale : float
-        Scale of the subject's reaches relative to the nominal subject.
-    shoulder : array, shape (3,)
-        Right shoulder position while seated, metres (world).
-    rest : array, shape (3,)
-        Mean wrist rest position (start of every motion), metres (world).
-    duration : float
-        Mean reach duration, seconds (scaled per task).
-    profile_skew : float
-        Skew of the speed profile (0: symmetric minimum jerk; > 0: early peak).
-    curvature : float
-        Path bulge as a fraction of the reach length.
-    curvature_angle : float
-        Direction of the bulge about the path, radians (0: up).
-    noise : float
-        Amplitude of the smooth tremor/tracking noise, metres.
-    jitter : float
-        Trial-to-trial via-point jitter (standard deviation), metres.
-    task_offsets : dict of str to array, shape (3,)
-        The subject's personal offset of each task's goal, metres.
-    sloppy : bool
-        Large trial-to-trial variation with two alternating path styles.
-    """
-
-    name: str
-    arm_length: float
-    index: int
-    reach: float
-    workspace_scale: float
-    shoulder: np.ndarray
-    rest: np.ndarray
-    duration: float
-    profile_skew: float
-    curvature: float
-    curvature_angle: float
-    noise: float
-    jitter: float
-    task_offsets: dict = field(default_factory=dict)
-    sloppy: bool = False
-
-    def calibration_box(self) -> tuple[np.ndarray, np.ndarray]:
-        """Bounding box (lower, upper), shape (3,) each, swept by the calibration half circles."""
-        lo = np.array([self.shoulder[0], self.shoulder[1] - self.reach, _calibration_z(self)])
-        hi = np.array([self.shoulder[0] + self.reach, self.shoulder[1] + self.reach,
-                       _calibration_z(self) + self.reach])
-        return lo, hi
+def _check_model(model: str) -> str:
+    if model not in SUBJECT_MODELS:
+        raise ValueError(f"unknown subject model {model!r}; subject models are {SUBJECT_MODELS}")
+    return model
 
 
-@dataclass(eq=False)
-class SubjectData:
-    """A subject with its calibration motions and demonstrations.
-
-    Attributes
-    ----------
-    subject : Subject
-    calibration : list of array, shape (T_i, 3)
-        The x-y and z-y half circles, in this order.
-    demos : list of Demonstration
-        Ordered by task (in ``TASKS`` order), then by demonstration index.
-    """
-
-    subject: Subject
-    calibration: list
-    demos: list = field(default_factory=list)
-
-    def workspace(self, z_factor: float | None = 0.9) -> Workspace:
-        """The subject's workspace from the calibration motions (Sec. 4.2.2)."""
-        return Workspace.from_calibration(self.calibration, z_factor=z_factor)
-
-    def by_task(self, task: str) -> list[Demonstration]:
-        """The demonstrations of one task."""
-        return [d for d in self.demos if d.task == task]
-
-
-# --------------------------------------------------------------------------- helpers
-def _rng(seed: int, index: int, *stream: int) -> np.random.Generator:
-    return np.random.default_rng(np.random.SeedSequence([int(seed), int(index), *map(int, stream)]))
-
-
-def _calibration_z(subject: Subject) -> float:
-    # the x-y half circle slides on the table; the z-y one starts there
-    return TABLE_TOP_Z + 0.015
-
-
-def min_jerk(u: np.ndarray) -> np.ndarray:
-    """Minimum-jerk profile ``10u^3 - 15u^4 + 6u^5`` on u clipped to [0, 1].
-
-    Parameters
-    ----------
-    u : array, shape (T,)
-
-    Returns
-    -------
-    s : array, shape (T,)
-        0 at u <= 0, 1 at u >= 1, zero velocity and acceleration at both ends.
-    """
-    u = np.clip(u, 0.0, 1.0)
-    return u ** 3 * (10.0 - 15.0 * u + 6.0 * u * u)
-
-
-def _skewed_profile(u: np.ndarray, skew: float) -> np.ndarray:
-    """Minimum jerk after a smooth time warp; ``skew > 0`` moves the speed peak earlier."""
-    u = np.clip(u, 0.0, 1.0)
-    if abs(skew) > 1e-9:
-        u = (1.0 - np.exp(-skew * u)) / (1.0 - np.exp(-skew))
-    return min_jerk(u)
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    n = np.linalg.norm(v)
-    return v / n if n > 1e-12 else v
-
-
-@functools.lru_cache(maxsize=1)
-def _scene():
-    return load_scene_config()
-
-
-def make_subject(index: int, seed: int = 0) -> Subject:
+def make_subject(index: int, seed: int = 0, model: str = DEFAULT_SUBJECT_MODEL) -> Subject:
     """Draw the body and habits of subject ``index`` (1-based).
 
     Parameters
@@ -205,7 +85,11 @@ def make_subject(index: int, seed: int = 0) -> Subject:
         1-based subject number; subjects in :data:`SLOPPY_SUBJECTS` are sloppy.
     seed : int
         Non-negative base seed.
+    model : str
+        One of :data:`SUBJECT_MODELS`.
     """
+    if _check_model(model) == "styled":
+        return salad_styles.make_styled_subject(index, seed)
     if int(index) < 1:
         raise ValueError(f"subject index is 1-based, got {index!r}")
     if int(seed) < 0:
@@ -262,53 +146,6 @@ def calibration_motions(subject: Subject, seed: int = 0) -> list[np.ndarray]:
         p = p + rng.normal(0.0, 0.0005, p.shape)  # motion-capture noise
         out.append(p)
     return out
-
-
-def _bezier(ctrl: np.ndarray, n: int) -> np.ndarray:
-    """Cubic Bezier curve through control points ``ctrl`` (4, 3), sampled at n points."""
-    s = np.linspace(0, 1, n)[:, None]
-    return ((1 - s) ** 3 * ctrl[0] + 3 * (1 - s) ** 2 * s * ctrl[1]
-            + 3 * (1 - s) * s ** 2 * ctrl[2] + s ** 3 * ctrl[3])
-
-
-@dataclass(eq=False)
-class ReachPlan:
-    """A planned wrist motion: a path timed by a skewed minimum-jerk profile, then a hold.
-
-    Attributes
-    ----------
-    path : array, shape (M, 3)
-        Densely sampled path, metres (world).
-    arc : array, shape (M,)
-        Arc length along ``path`` from 0.
-    goal : array, shape (3,)
-        Noise-free end of the reach.
-    T_move, T_hold : float
-        Reach duration and (minimum) hold at the goal, seconds.
-    skew : float
-        Speed-profile skew (see :func:`min_jerk`).
-    noise : array, shape (3, 3, 3)
-        Frequencies, phases and amplitudes of the smooth noise (3 sinusoids x 3 axes).
-    """
-
-    path: np.ndarray
-    arc: np.ndarray
-    goal: np.ndarray
-    T_move: float
-    T_hold: float
-    skew: float
-    noise: np.ndarray
-
-    def position(self, t: np.ndarray) -> np.ndarray:
-        """Wrist positions (T, 3) at times t (T,), with the smooth noise, without sensor noise."""
-        t = np.asarray(t, float)
-        sa = self.arc[-1] * _skewed_profile(t / self.T_move, self.skew)
-        y = np.stack([np.interp(sa, self.arc, self.path[:, k]) for k in range(3)], axis=1)
-        f, ph, a = self.noise
-        n = np.einsum("ka,tka->ta", a, np.sin(2 * np.pi * f[None] * t[:, None, None] + ph[None]))
-        fade = 0.5 * (1 - np.cos(np.pi * np.clip(t / 0.4, 0, 1)))  # the start is the rest position
-        return y + n * fade[:, None]
-
 
 def plan_reach(subject: Subject, task: str, rng: np.random.Generator) -> ReachPlan:
     """Plan one wrist motion of ``subject`` doing ``task``.
@@ -376,7 +213,6 @@ def plan_reach(subject: Subject, task: str, rng: np.random.Generator) -> ReachPl
                       rng.normal(0, subject.noise / np.sqrt(3), (3, 3))])
     return ReachPlan(path=path, arc=arc, goal=goal, T_move=T_move, T_hold=T_hold, skew=skew, noise=noise)
 
-
 # --------------------------------------------------------------------------- robot
 def robot_motion(task: str, wrist_goal: np.ndarray, t_human: float,
                  rng: np.random.Generator) -> tuple[float, Callable[[np.ndarray], np.ndarray]]:
@@ -421,9 +257,8 @@ def robot_motion(task: str, wrist_goal: np.ndarray, t_human: float,
 
     return t_end, q_of_t
 
-
 def make_demonstration(subject: Subject, task: str, k: int, seed: int = 0) -> Demonstration:
-    """Demonstration ``k`` (0-based) of ``task`` by ``subject``.
+    """Demonstration ``k`` (0-based) of ``task`` by ``subject`` (classic or styled).
 
     Returns
     -------
@@ -432,13 +267,17 @@ def make_demonstration(subject: Subject, task: str, k: int, seed: int = 0) -> De
         IIWA7 joints in radians; the hand holds still until the robot has arrived.
     """
     rng = _rng(seed, subject.index, _STREAM_DEMO, TASKS.index(task), k)
-    plan = plan_reach(subject, task, rng)
+    styled = subject.style is not None
+    plan = salad_styles.plan_styled_reach(subject, task, rng) if styled else plan_reach(subject, task, rng)
     wrist_goal = plan.position(np.array([plan.T_move]))[0]
     t_human = plan.T_move + plan.T_hold
     t_end, q_of_t = robot_motion(task, wrist_goal, t_human, rng)
     T = max(t_human, t_end + float(rng.uniform(0.05, 0.15)))
     t = np.arange(int(round(T * RATE_HZ)) + 1) / RATE_HZ
-    wrist = plan.position(t) + rng.normal(0, 0.0005, (t.shape[0], 3))  # motion-capture noise
+    if styled:
+        wrist = salad_styles.track(subject, t, plan.position(t), rng)
+    else:
+        wrist = plan.position(t) + rng.normal(0, 0.0005, (t.shape[0], 3))  # motion-capture noise
     q = q_of_t(t)
     lo, hi = IIWA7_JOINT_LIMITS
     if (q < lo).any() or (q > hi).any():
@@ -448,7 +287,8 @@ def make_demonstration(subject: Subject, task: str, k: int, seed: int = 0) -> De
 
 
 # --------------------------------------------------------------------------- generation
-def generate_subject(index: int, n_demos: int = 15, seed: int = 0, tasks=TASKS) -> SubjectData:
+def generate_subject(index: int, n_demos: int = 15, seed: int = 0, tasks=TASKS,
+                     model: str = DEFAULT_SUBJECT_MODEL) -> SubjectData:
     """Calibration and demonstrations of one subject.
 
     Parameters
@@ -461,6 +301,8 @@ def generate_subject(index: int, n_demos: int = 15, seed: int = 0, tasks=TASKS) 
         Non-negative base seed.
     tasks : sequence of str
         Subset of :data:`TASKS`.
+    model : str
+        One of :data:`SUBJECT_MODELS`.
 
     Returns
     -------
@@ -474,8 +316,11 @@ def generate_subject(index: int, n_demos: int = 15, seed: int = 0, tasks=TASKS) 
         raise ValueError(f"unknown task(s) {unknown}; tasks are {TASKS}")
     if int(n_demos) < 0:
         raise ValueError(f"n_demos must be non-negative, got {n_demos!r}")
-    subject = make_subject(index, seed)
-    data = SubjectData(subject=subject, calibration=calibration_motions(subject, seed))
+    subject = make_subject(index, seed, model)
+    calibration = calibration_motions(subject, seed)
+    if subject.style is not None:
+        calibration = salad_styles.track_calibration(subject, calibration, _rng(seed, index, _STREAM_CALIBRATION, 1))
+    data = SubjectData(subject=subject, calibration=calibration)
     for task in tasks:
         for k in range(int(n_demos)):
             data.demos.append(make_demonstration(subject, task, k, seed))
@@ -483,8 +328,9 @@ def generate_subject(index: int, n_demos: int = 15, seed: int = 0, tasks=TASKS) 
     return data
 
 
-def generate_salad(n_subjects: int = 10, n_demos: int = 15, seed: int = 0, tasks=TASKS) -> list[SubjectData]:
+def generate_salad(n_subjects: int = 10, n_demos: int = 15, seed: int = 0, tasks=TASKS,
+                   model: str = DEFAULT_SUBJECT_MODEL) -> list[SubjectData]:
     """Subjects 1..n_subjects of the salad scenario (see :func:`generate_subject`)."""
     if int(n_subjects) < 1:
         raise ValueError(f"n_subjects must be at least 1, got {n_subjects!r}")
-    return [generate_subject(i, n_demos, seed, tasks) for i in range(1, int(n_subjects) + 1)]
+    return [generate_subject(i, n_demos, seed, tasks, model) for i in range(1, int(n_subjects) + 1)]

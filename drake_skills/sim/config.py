@@ -28,6 +28,9 @@ from drake_skills.systems.decision_rule import DecisionRule
 from drake_skills.systems.normalizer import SampleRule
 from drake_skills.systems.wrist_faults import TrackerFaults
 
+#: Subject models of the simulated salad scenario (drake_skills.scenario.salad), the default first.
+SUBJECT_MODELS = ("styled", "classic")
+
 
 @dataclass
 class ControllerConfig:
@@ -87,6 +90,8 @@ class SimConfig:
     trials: int = 20
     # 1-based index of the simulated subject (drake_skills.scenario.salad)
     subject: int = 1
+    # how the simulated people move: "styled" (styles per person) or "classic" (one geometry, scaled)
+    subject_model: str = SUBJECT_MODELS[0]
     # demonstrations generated per task for the subject (the trial pool)
     demos_per_task: int = 15
     # shrink factor of the calibrated workspace along z (Sec. 4.2.2)
@@ -112,6 +117,8 @@ class SimConfig:
             raise ValueError(f"SimConfig.unknown_hold_time must be >= 0, got {self.unknown_hold_time!r}")
         if isinstance(self.subject, bool) or int(self.subject) != self.subject or self.subject < 1:
             raise ValueError(f"SimConfig.subject is a 1-based index, got {self.subject!r}")
+        if self.subject_model not in SUBJECT_MODELS:
+            raise ValueError(f"SimConfig.subject_model must be one of {SUBJECT_MODELS}, got {self.subject_model!r}")
         if self.trials < 1 or self.n_steps < 2 or self.demos_per_task < 1:
             raise ValueError("SimConfig: trials and demos_per_task must be >= 1 and n_steps >= 2")
         if not 0 < self.z_factor <= 1:

@@ -96,8 +96,12 @@ class TaskConfig:
 
     # scene object the robot fetches ("" for standup)
     object: str = ""
-    # the person's final wrist position for the nominal subject, metres (world)
+    # the classic subjects' final wrist position for the nominal subject, metres (world)
     reach: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    # what a styled subject's hand goes for: the object where it stands (its grasp point
+    # for the knife), metres (world); a reach stops short of it at the subject's stretch.
+    # Empty for standup (the motion is the person's own)
+    target: list[float] = field(default_factory=list)
     # flange pose X_WE where the robot grasps the object (for standup: a ready pose)
     grasp: Pose = field(default_factory=Pose)
     # handover flange position = final wrist + handover_distance along the horizontal

@@ -240,6 +240,17 @@ def test_response_errors_are_nan_exactly_where_the_motion_is_unknown(cache):
             assert (r.outcome != CORRECT).all()
 
 
+def test_each_subject_model_has_its_own_data_and_cache(cache):
+    s = replace(SaladSettings.quick(), n_subjects=2, n_demos=2, tasks=("tomato",), subject_model="classic")
+    classic = load_salad_data(s, cache_dir=cache)
+    styled = load_salad_data(replace(s, subject_model="styled"), cache_dir=cache)
+    assert all(d.subject.style is None for d in classic) and all(d.subject.style is not None for d in styled)
+    assert not np.array_equal(classic[0].demos[0].human, styled[0].demos[0].human)
+    assert {p.name for p in next(cache.glob("salad-*")).iterdir()} >= {"classic", "styled"}
+    again = load_salad_data(s, cache_dir=cache)  # read back from its own cache
+    np.testing.assert_array_equal(again[1].demos[1].human, classic[1].demos[1].human)
+
+
 def test_shared_workspace_contains_every_personal_workspace(cache):
     s = SaladSettings.quick()
     data = load_salad_data(s, cache_dir=cache)
@@ -254,7 +265,8 @@ def test_shared_workspace_contains_every_personal_workspace(cache):
 
 @pytest.mark.parametrize("change, message", [
     (dict(n_subjects=1), "n_subjects"), (dict(n_train=4), "n_train"), (dict(fractions=(0.0, 1.0)), "fractions"),
-    (dict(tasks=("board", "soup")), "tasks"), (dict(transfer_test=9), "transfer_test")])
+    (dict(tasks=("board", "soup")), "tasks"), (dict(transfer_test=9), "transfer_test"),
+    (dict(subject_model="stylish"), "subject_model")])
 def test_inconsistent_settings_are_rejected_with_the_setting_named(change, message):
     with pytest.raises(ValueError, match=message):
         replace(SaladSettings.quick(), **change)

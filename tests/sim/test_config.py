@@ -51,6 +51,7 @@ def test_a_file_of_library_fields_alone_is_the_library_config(tmp_path):
     ("library:\n  n_basis: 3\n", "n_basis"),
     ("- 1\n- 2\n", "not a mapping"),
     ("library:\n  workspace: {lower: [], upper: []}\n", "too short"),
+    ("subject_model: stylish\n", "subject_model must be one of"),
 ])
 def test_bad_settings_are_errors_naming_the_file_and_the_field(tmp_path, text, message):
     p = _write(tmp_path, text, "bad.yaml")
