@@ -112,6 +112,8 @@ def load_library(path):
             cfg_meta.setdefault("resample_tolerance", 0.0)
         config = LibraryConfig.from_dict(cfg_meta)
         comps_meta = meta["components"]
+        if not isinstance(comps_meta, list):
+            raise TypeError(f"components must be a list, got {type(comps_meta).__name__}")
         dim_h, dim_r = meta["dim_human"], meta["dim_robot"]
         next_id, n_seen, history = int(meta["next_id"]), int(meta["n_seen"]), list(meta["history"])
     except (KeyError, TypeError, ValueError) as exc:
