@@ -1,5 +1,6 @@
 """Library files: round trip, atomic writes, clear errors for bad files, no pickle."""
 import json
+import re
 
 import numpy as np
 import pytest
@@ -7,6 +8,7 @@ import pytest
 from drake_skills import LibraryConfig, SkillLibrary
 from drake_skills.library import storage
 
+import library_files as lf
 from synthetic import synthetic_demo
 
 
@@ -20,7 +22,28 @@ def lib():
     return lib
 
 
-def test_round_trip_gives_identical_predictions(lib, tmp_path):
+def test_round_trip_restores_the_saved_library(lib, tmp_path):
+    """Everything the saved library holds comes back: compared with the library before saving."""
+    p = lib.save(tmp_path / "lib")
+    assert p == tmp_path / "lib.npz"
+    back = SkillLibrary.load(p)
+    assert back.n_seen == lib.n_seen == 19
+    assert back.config == lib.config
+    assert back.history == lib.history
+    assert any(e["event"] == "deleted" for e in back.history)
+    assert (back.dim_human_, back.dim_robot_) == (3, 7)
+    assert len(back.components) == len(lib.components) == 3
+    for a, b in zip(lib.components, back.components):
+        assert (b.id, b.age, b.support, b.duration, b.weight) == (a.id, a.age, a.support, a.duration, a.weight)
+        np.testing.assert_array_equal(b.mean, a.mean)
+        np.testing.assert_array_equal(b.cov, a.cov)
+    # the next id is restored too: a novel motion gets the id the saved library would give it
+    rng = np.random.default_rng(5)
+    novel = synthetic_demo(3, rng)
+    assert back.partial_fit(novel).created == (4,)
+
+
+def test_round_trip_gives_identical_predictions_and_learning(lib, tmp_path):
     p = tmp_path / "lib.npz"
     lib.save(p)
     lib2 = SkillLibrary.load(p)
@@ -30,13 +53,19 @@ def test_round_trip_gives_identical_predictions(lib, tmp_path):
         r1, r2 = lib.recognize(h), lib2.recognize(h)
         assert r1.component == r2.component
         np.testing.assert_array_equal(r1.responsibilities, r2.responsibilities)
+        np.testing.assert_array_equal(r1.log_likelihoods, r2.log_likelihoods)
         np.testing.assert_array_equal(lib.predict_robot(h)[0], lib2.predict_robot(h)[0])
-    assert lib2.history == lib.history
-    assert any(e["event"] == "deleted" for e in lib2.history)
-    assert lib2.config == lib.config
-    # the loaded library keeps learning the same way
+    # the loaded library keeps learning the same way as the one that was saved (on a copy of it)
     d = synthetic_demo(0, rng)
-    assert lib.__class__.load(p).partial_fit(d) == lib2.partial_fit(d)
+    assert SkillLibrary.load(p).partial_fit(d) == lib2.partial_fit(d)
+
+
+def test_loaded_library_is_independent_of_the_file(lib, tmp_path):
+    p = tmp_path / "lib.npz"
+    lib.save(p)
+    back = SkillLibrary.load(p)
+    p.unlink()
+    assert back.recognize(synthetic_demo(0, np.random.default_rng(2)).human).component is not None
 
 
 def test_save_is_atomic_and_leaves_no_temp_files(lib, tmp_path):
@@ -67,57 +96,31 @@ def test_save_gives_the_usual_file_mode_and_a_failed_save_keeps_the_old_file(lib
     assert sorted(x.name for x in tmp_path.iterdir()) == ["lib.npz"]
 
 
-def _rewrite(src, dst, **changes):
-    with np.load(src, allow_pickle=False) as z:
-        arrays = {k: z[k] for k in z.files}
-    meta = json.loads(str(arrays["metadata"]))
-    for k, v in changes.pop("meta", {}).items():
-        meta[k] = v
-    arrays["metadata"] = np.array(json.dumps(meta))
-    arrays.update(changes)
-    np.savez(dst, **arrays)
-
-
-def test_bad_files_give_clear_errors(lib, tmp_path):
-    good = tmp_path / "good.npz"
-    lib.save(good)
-    data = good.read_bytes()
-    cases = {}
-    (tmp_path / "truncated.npz").write_bytes(data[: len(data) // 2])
-    cases["truncated.npz"] = "truncated"
-    (tmp_path / "text.npz").write_text("hello")
-    cases["text.npz"] = "truncated or not an .npz"
-    np.savez(tmp_path / "foreign.npz", x=np.arange(3))
-    cases["foreign.npz"] = "not a drake-skills library"
-    _rewrite(good, tmp_path / "newer.npz", meta={"schema_version": storage.SCHEMA_VERSION + 1})
-    cases["newer.npz"] = "newer"
-    with np.load(good) as z:
-        covs = z["covs"].copy()
-        means = z["means"].copy()
-    covs[0, 0, 1] += 1.0
-    _rewrite(good, tmp_path / "asym.npz", covs=covs)
-    cases["asym.npz"] = "not symmetric"
-    means[1, 2] = np.nan
-    _rewrite(good, tmp_path / "nan.npz", means=means)
-    cases["nan.npz"] = "NaN"
-    _rewrite(good, tmp_path / "shape.npz", means=means[:, :-1])
-    cases["shape.npz"] = "shapes"
-    _rewrite(good, tmp_path / "format.npz", meta={"format": "something else"})
-    cases["format.npz"] = "not a drake-skills library"
-    np.savez(tmp_path / "pickled.npz", metadata=np.array([{"a": 1}], dtype=object), means=means, covs=covs)
-    cases["pickled.npz"] = "without pickle"
-    for name, msg in cases.items():
-        with pytest.raises(ValueError, match=msg) as e:
-            SkillLibrary.load(tmp_path / name)
-        assert name in str(e.value)
-    with pytest.raises(FileNotFoundError):
-        SkillLibrary.load(tmp_path / "missing.npz")
+def test_save_rejects_what_is_not_a_library(tmp_path):
+    with pytest.raises(ValueError, match="save_library takes a SkillLibrary, got dict"):
+        storage.save_library({}, tmp_path / "x.npz")
 
 
 def test_empty_library_round_trips(tmp_path):
     p = tmp_path / "empty.npz"
-    SkillLibrary().save(p)
-    assert SkillLibrary.load(p).n_components == 0
+    SkillLibrary(LibraryConfig(n_basis_human=7)).save(p)
+    back = SkillLibrary.load(p)
+    assert back.n_components == 0 and back.n_seen == 0 and back.history == ()
+    assert back.config == LibraryConfig(n_basis_human=7)
+    assert back.dim_human_ is None and back.dim_robot_ is None
+
+
+def test_library_whose_components_were_all_deleted_keeps_its_counters(tmp_path):
+    """No components left, but dimensions, the next id, n_seen and the history are kept."""
+    cfg = LibraryConfig()
+    meta = lf.metadata(cfg, [], dim_human=3, dim_robot=7, next_id=4, n_seen=9,
+                       history=[{"event": "created", "id": 3, "demo": 0}])
+    p = lf.write(tmp_path / "gone.npz", meta, np.zeros((0, 100)), np.zeros((0, 100, 100)))
+    back = SkillLibrary.load(p)
+    assert back.n_components == 0 and back.n_seen == 9
+    assert back.history == ({"event": "created", "id": 3, "demo": 0},)
+    assert back.n_human == 30 and back.has_robot
+    assert back.partial_fit(synthetic_demo(0, np.random.default_rng(0))).created == (4,)
 
 
 def test_version_1_file_keeps_its_raw_arc_length(lib, tmp_path):
@@ -126,9 +129,9 @@ def test_version_1_file_keeps_its_raw_arc_length(lib, tmp_path):
     lib.save(good)
     with np.load(good, allow_pickle=False) as z:
         meta = json.loads(str(z["metadata"]))
-    cfg = {k: v for k, v in meta["config"].items() if k != "resample_tolerance"}
-    _rewrite(good, tmp_path / "v1.npz", meta={"schema_version": 1, "config": cfg})
-    old = SkillLibrary.load(tmp_path / "v1.npz")
+        means, covs = z["means"], z["covs"]
+    meta.update(schema_version=1, config={k: v for k, v in meta["config"].items() if k != "resample_tolerance"})
+    old = SkillLibrary.load(lf.write(tmp_path / "v1.npz", meta, means, covs))
     assert old.config.resample_tolerance == 0.0
     tolerant = SkillLibrary(LibraryConfig(resample_tolerance=0.1))
     rng = np.random.default_rng(2)
@@ -136,3 +139,197 @@ def test_version_1_file_keeps_its_raw_arc_length(lib, tmp_path):
         tolerant.partial_fit(synthetic_demo(i, rng))
     tolerant.save(tmp_path / "v2.npz")
     assert SkillLibrary.load(tmp_path / "v2.npz").config.resample_tolerance == 0.1
+
+
+# ----------------------------------------------------------------------------- bad files
+H, R = 3 * 10, 7 * 20  # weights of the default config with a 3-D human and 7 joints
+
+
+def _good_parts(rng=None):
+    """Two valid components (ids 0 and 2) of the default config, and their metadata."""
+    rng = rng or np.random.default_rng(7)
+    d = H + R
+    A = rng.standard_normal((d, d))
+    cov = A @ A.T / d + 0.1 * np.eye(d)
+    comps = [lf.component(0, rng.standard_normal(d), cov, support=3.0, age=6, duration=1.2),
+             lf.component(2, rng.standard_normal(d), 0.5 * cov, support=1.5, age=2, duration=0.8)]
+    meta = lf.metadata(LibraryConfig(), comps, dim_human=3, dim_robot=7, next_id=3)
+    means = np.stack([c["mean"] for c in comps])
+    covs = np.stack([c["cov"] for c in comps])
+    return meta, means, covs
+
+
+def test_hand_written_valid_file_loads(tmp_path):
+    """The baseline of the error tests below: the unmodified parts make a good library."""
+    meta, means, covs = _good_parts()
+    lib = SkillLibrary.load(lf.write(tmp_path / "ok.npz", meta, means, covs))
+    assert [(c.id, c.age, c.support, c.duration) for c in lib.components] == [(0, 6, 3.0, 1.2), (2, 2, 1.5, 0.8)]
+    np.testing.assert_array_equal(lib.components[1].cov, covs[1])
+
+
+def _meta_with(**changes):
+    meta, means, covs = _good_parts()
+    meta.update(changes)
+    return meta, means, covs
+
+
+def _component_with(i, **changes):
+    meta, means, covs = _good_parts()
+    meta["components"][i].update(changes)
+    return meta, means, covs
+
+
+def _covs_with(fn):
+    meta, means, covs = _good_parts()
+    covs = covs.copy()
+    fn(covs)
+    return meta, means, covs
+
+
+def _means_with(fn):
+    meta, means, covs = _good_parts()
+    means = means.copy()
+    fn(means)
+    return meta, means, covs
+
+
+def _not_pd(covs):
+    covs[1][:H, :H] -= 5.0 * np.eye(H)  # human block indefinite, beyond what the gating floor (1.0) hides
+
+
+def _robot_block_not_pd(covs):
+    covs[1][H:, H:] -= 5.0 * np.eye(R)  # only the robot block: the gating (human) factor still exists
+
+
+def _human_block_hidden_by_floor(covs):
+    """One eigenvalue -0.5 in the human block: the floored gating factor (floor 1.0) exists, the covariance is not PD."""
+    S = covs[0][:H, :H]
+    w, V = np.linalg.eigh(S)
+    w[0] = -0.5
+    covs[0][:H, :H] = 0.5 * ((V * w) @ V.T + ((V * w) @ V.T).T)
+    covs[0][:H, H:] = 0.0
+    covs[0][H:, :H] = 0.0
+
+
+def _shorter(which):
+    meta, means, covs = _good_parts()
+    if which == "means":
+        return meta, means[:, :-1], covs
+    return meta, means, covs[:, :-1]
+
+
+def _metadata_array(value):
+    meta, means, covs = _good_parts()
+    return value, means, covs
+
+
+METADATA_CASES = {
+    "no_format": (lambda: _meta_with(format=None), "is not a drake-skills library (format tag None)"),
+    "other_format": (lambda: _meta_with(format="something else"),
+                     "is not a drake-skills library (format tag 'something else')"),
+    "schema_missing": (lambda: _meta_with(schema_version=None), "schema_version missing or not an integer"),
+    "schema_text": (lambda: _meta_with(schema_version="2"), "schema_version missing or not an integer"),
+    "newer": (lambda: _meta_with(schema_version=storage.SCHEMA_VERSION + 1),
+              f"has schema version {storage.SCHEMA_VERSION + 1}, newer than this drake-skills supports "
+              f"({storage.SCHEMA_VERSION}): upgrade drake-skills"),
+    "config_missing": (lambda: _meta_with(config=None), "bad metadata (TypeError"),
+    "config_unknown_field": (lambda: _meta_with(config={**LibraryConfig().dict(), "magic": 1}),
+                             "bad metadata (ValueError: unknown LibraryConfig fields: ['magic'])"),
+    "config_bad_value": (lambda: _meta_with(config={**LibraryConfig().dict(), "gating_floor": -1.0}),
+                         "bad metadata (ValueError: LibraryConfig.gating_floor must be positive"),
+    "next_id_missing": (lambda: _meta_with(next_id=None), "bad metadata (TypeError"),
+    "n_seen_text": (lambda: _meta_with(n_seen="many"), "bad metadata (ValueError"),
+    "history_number": (lambda: _meta_with(history=3), "bad metadata (TypeError"),
+    "components_missing": (lambda: _meta_with(components=None), "bad metadata (TypeError"),
+    "no_dimensions": (lambda: _meta_with(dim_human=None), "components but no dimensions"),
+    "no_robot_dimension": (lambda: _meta_with(dim_robot=None), "components but no dimensions"),
+    "wrong_dimension": (lambda: _meta_with(dim_human=2),
+                        "arrays have shapes (2, 170), (2, 170, 170); metadata says 2 components of dimension 160"),
+    "fewer_components": (lambda: _meta_with(components=_good_parts()[0]["components"][:1]),
+                         "metadata says 1 components of dimension 170"),
+    "component_no_age": (lambda: _component_with(1, age=None), "component 1 metadata is bad"),
+    "component_no_support": (lambda: _component_with(0, support="lots"), "component 0 metadata is bad"),
+    "duplicate_id": (lambda: _component_with(1, id=0), "component id 0 is duplicated or out of range"),
+    "id_at_next_id": (lambda: _component_with(1, id=3), "component id 3 is duplicated or out of range"),
+    "negative_id": (lambda: _component_with(0, id=-1), "component id -1 is duplicated or out of range"),
+    "zero_support": (lambda: _component_with(1, support=0.0), "component 2 has support 0.0, age 2, duration 0.8"),
+    "negative_support": (lambda: _component_with(0, support=-1.0),
+                         "component 0 has support -1.0, age 6, duration 1.2"),
+    "negative_age": (lambda: _component_with(1, age=-1), "component 2 has support 1.5, age -1, duration 0.8"),
+    "nan_duration": (lambda: _component_with(1, duration=float("nan")),
+                     "component 2 has support 1.5, age 2, duration nan"),
+    "inf_duration": (lambda: _component_with(0, duration=float("inf")),
+                     "component 0 has support 3.0, age 6, duration inf"),
+    "means_short": (lambda: _shorter("means"), "arrays have shapes (2, 169), (2, 170, 170)"),
+    "covs_short": (lambda: _shorter("covs"), "arrays have shapes (2, 170), (2, 169, 170)"),
+    "nan_mean": (lambda: _means_with(lambda m: m.__setitem__((1, 2), np.nan)),
+                 "means or covariances contain NaN or inf"),
+    "inf_cov": (lambda: _covs_with(lambda c: c.__setitem__((0, 3, 3), np.inf)),
+                "means or covariances contain NaN or inf"),
+    "asymmetric": (lambda: _covs_with(lambda c: c.__setitem__((1, 0, 1), c[1, 0, 1] + 1e-3)),
+                   "covariance of component 2 is not symmetric"),
+    "not_pd": (lambda: _covs_with(_not_pd), "covariance of component 2 is not positive definite"),
+    "robot_block_not_pd": (lambda: _covs_with(_robot_block_not_pd),
+                           "covariance of component 2 is not positive definite"),
+    "negative_eigenvalue_under_floor": (lambda: _covs_with(_human_block_hidden_by_floor),
+                                        "covariance of component 0 is not positive definite"),
+    "metadata_number": (lambda: _metadata_array(np.array(3.0)), "metadata entry is not a JSON string"),
+    "metadata_list": (lambda: _metadata_array(np.array(["{}", "{}"])), "metadata entry is not a JSON string"),
+    "metadata_not_json": (lambda: _metadata_array(np.array("{not json")), "metadata is not valid JSON"),
+    "metadata_json_list": (lambda: _metadata_array(np.array("[1, 2]")),
+                           "is not a drake-skills library (format tag None)"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(METADATA_CASES))
+def test_inconsistent_file_is_rejected_with_a_message_naming_it(tmp_path, case):
+    make, message = METADATA_CASES[case]
+    meta, means, covs = make()
+    p = lf.write(tmp_path / f"{case}.npz", meta, means, covs)
+    with pytest.raises(ValueError, match=re.escape(message)) as e:
+        SkillLibrary.load(p)
+    assert str(e.value).startswith(f"library file '{p}'")
+
+
+def test_symmetric_within_rounding_is_accepted(tmp_path):
+    """Asymmetry at the level of float rounding (1e-15 relative) is not an error."""
+    meta, means, covs = _covs_with(lambda c: c.__setitem__((1, 0, 1), c[1, 0, 1] * (1 + 1e-15)))
+    assert SkillLibrary.load(lf.write(tmp_path / "ok.npz", meta, means, covs)).n_components == 2
+
+
+def test_unreadable_files_give_clear_errors(lib, tmp_path):
+    good = tmp_path / "good.npz"
+    lib.save(good)
+    data = good.read_bytes()
+    meta, means, covs = _good_parts()
+    cases = {}
+    (tmp_path / "truncated.npz").write_bytes(data[: len(data) // 2])
+    cases["truncated.npz"] = "is truncated or not an .npz file"
+    (tmp_path / "text.npz").write_text("hello")
+    cases["text.npz"] = "is truncated or not an .npz file"
+    np.savez(tmp_path / "foreign.npz", x=np.arange(3))
+    cases["foreign.npz"] = "is not a drake-skills library (missing ['covs', 'means', 'metadata'])"
+    np.savez(tmp_path / "nocovs.npz", metadata=np.array(json.dumps(meta)), means=means)
+    cases["nocovs.npz"] = "is not a drake-skills library (missing ['covs'])"
+    np.savez(tmp_path / "pickled.npz", metadata=np.array([{"a": 1}], dtype=object), means=means, covs=covs)
+    cases["pickled.npz"] = "cannot be read as .npz without pickle"
+    for name, msg in cases.items():
+        with pytest.raises(ValueError, match=re.escape(msg)) as e:
+            SkillLibrary.load(tmp_path / name)
+        assert str(e.value).startswith(f"library file '{tmp_path / name}'"), e.value
+    with pytest.raises(FileNotFoundError, match=re.escape(f"library file '{tmp_path / 'missing.npz'}' does not exist")):
+        SkillLibrary.load(tmp_path / "missing.npz")
+
+
+def test_corrupt_member_of_a_zip_is_a_clear_error(lib, tmp_path):
+    """A zip whose member is damaged (CRC or format) is reported as truncated, not as a numpy traceback."""
+    import zipfile
+
+    p = tmp_path / "bad_member.npz"
+    with zipfile.ZipFile(p, "w") as z:
+        z.writestr("metadata.npy", b"not an npy file at all")
+        z.writestr("means.npy", b"")
+        z.writestr("covs.npy", b"")
+    with pytest.raises(ValueError, match="library file .*bad_member.npz") as e:
+        SkillLibrary.load(p)
+    assert "truncated" in str(e.value) or "cannot be read" in str(e.value)
