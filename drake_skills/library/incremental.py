@@ -372,6 +372,8 @@ class SkillLibrary:
     @property
     def components(self) -> tuple[Component, ...]:
         """Read-only views of the components (arrays are not copied and not writable)."""
+        if not self._components:
+            return ()
         total = sum(c.support for c in self._components) or 1.0
         h = self.n_human
         out = []
