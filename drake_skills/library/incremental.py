@@ -657,14 +657,16 @@ class SkillLibrary:
                     continue
                 d2 = mahalanobis_sq(means[js], ci.mean[:h], ci.chol_g)
                 thr = self._merge_threshold(ci, h)
+                # score < 0 merges; the loglik score stays in the log domain, so that pairs far inside
+                # the threshold are still ordered (clipping exp() made them tie)
                 if cfg.novelty_test == "chi2":
-                    score = d2 / thr  # < 1 merges
+                    score = d2 / thr - 1.0
                 else:
                     logdet = 2 * np.sum(np.log(np.diag(ci.chol_g)))
                     logp = -0.5 * (h * np.log(2 * np.pi) + logdet + d2)
-                    score = np.exp(np.clip(thr - logp, -50, 50))  # < 1 merges
+                    score = thr - logp
                 k = int(np.argmin(score))
-                if score[k] < 1 and (best is None or score[k] < best[0]):
+                if score[k] < 0 and (best is None or score[k] < best[0]):
                     best = (float(score[k]), i, js[k])
             if best is None:
                 break

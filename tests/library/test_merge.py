@@ -246,3 +246,21 @@ def test_best_pair_merges_first_then_the_merged_component_is_checked_again(tmp_p
     assert [e["event"] for e in lib.history[-2:]] == ["merged", "merged"]
     # supports 4 + 1 + 1 plus the demonstration's responsibilities, which sum to 1
     assert lib.n_components == 1 and lib.components[0].support == pytest.approx(7.0, abs=1e-12)
+
+
+def test_best_pair_merges_first_in_the_log_domain_however_deep_inside_the_threshold(tmp_path):
+    """novelty_test="loglik" with log T_merge = -100: both candidates lie ~95 nats inside the threshold.
+    The nearer one (B, d^2 ~ 1, listed after C, d^2 ~ 3) is still absorbed first."""
+    cfg = LibraryConfig(**SMALL, gating_floor=1e-3, novelty_test="loglik", log_T_merge=-100.0)
+    rng = np.random.default_rng(4)
+    demo = synthetic_demo(0, rng, T=30, robot=False)
+    w = lf.encode(cfg, demo)
+    h = w.shape[0]
+    tight = 1e-5 * np.eye(h)
+    comps = [lf.component(0, w, 0.25 * np.eye(h), support=4.0, age=10),
+             lf.component(1, w + np.sqrt(0.6) * _unit(rng, h), tight, support=1.0, age=10),   # C, farther
+             lf.component(2, w + np.sqrt(0.2) * _unit(rng, h), tight, support=1.0, age=10)]   # B, nearer
+    lib = SkillLibrary.load(lf.write_library(tmp_path / "acb.npz", cfg, comps, dim_human=3, dim_robot=0))
+    u = lib.partial_fit(demo)
+    assert u.updated == (0,)
+    assert u.merged == ((0, 2), (0, 1))
