@@ -121,6 +121,12 @@ def test_responsibilities_of_a_demonstration_update_every_component(tmp_path):
         np.testing.assert_allclose(a.mean, b.mean + gamma * (w - b.mean), rtol=0, atol=1e-12)
 
 
+def test_update_reports_the_most_responsible_component(tmp_path):
+    lib, demo, _ = _at_distance(tmp_path, [6.0, 1.0, 4.0])
+    u = lib.partial_fit(demo)
+    assert u.recognized == 1 and max(u.responsibilities, key=u.responsibilities.get) == 1
+
+
 def test_unknown_motion_cannot_be_predicted(tmp_path):
     lib, demo, _ = _at_distance(tmp_path, [2 * THR], robot=True)
     with pytest.raises(UnknownSkillError, match="^the motion matches no skill in the library: ask for a demonstration$"):

@@ -247,3 +247,21 @@ def test_config_rejects_bad_values_and_round_trips():
 def test_loglik_novelty_test_also_separates_skills():
     lib = _taught_library(n_per_task=6, tasks=(0, 1, 2), novelty_test="loglik")
     assert lib.n_components == 3
+
+
+def test_incremental_update_forgets_fast_by_default_and_caps_gamma_tilde_at_1():
+    rng = np.random.default_rng(12)
+    mean, cov, w = rng.standard_normal(3), np.eye(3), rng.standard_normal(3)
+    default = incremental_update(mean, cov, 2.0, w, 0.5)
+    fast = incremental_update(mean, cov, 2.0, w, 0.5, fast_forgetting=True)
+    for a, b in zip(default, fast):
+        np.testing.assert_array_equal(a, b)
+    s, gamma = 2.5, 0.5 / 2.5
+    gamma_t = gamma + np.exp(-s) * 0.5
+    e = w - mean
+    np.testing.assert_allclose(fast[1], (1 - gamma_t) * cov + gamma_t * (1 - gamma) * np.outer(e, e), rtol=1e-12)
+    # support 0.1 and lambda 1: gamma + exp(-1.1) = 0.91 + 0.33 > 1, capped: Sigma_init is forgotten entirely
+    m2, c2, s2, g2 = incremental_update(mean, cov, 0.1, w, 1.0)
+    assert s2 == pytest.approx(1.1) and g2 == pytest.approx(1.0 / 1.1)
+    np.testing.assert_allclose(c2, (1 - g2) * np.outer(e, e), rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(m2, mean + g2 * e, rtol=1e-12)

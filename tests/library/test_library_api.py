@@ -134,6 +134,12 @@ def test_as_mixture_gives_the_gating_and_the_expert_mixtures():
     _raises("part must be 'gating' or 'expert', got 'robot'", lib.as_mixture, "robot")
 
 
+def test_as_mixture_of_a_single_component():
+    lib = _lib(n=1)
+    w, means, covs = lib.as_mixture("expert")
+    assert w.tolist() == [1.0] and means.shape == (1, 50) and covs.shape == (1, 50, 50)
+
+
 def test_as_mixture_of_a_library_whose_components_were_all_deleted(tmp_path):
     meta = lf.metadata(LibraryConfig(**SMALL), [], dim_human=3, dim_robot=7, next_id=3)
     lib = SkillLibrary.load(lf.write(tmp_path / "x.npz", meta, np.zeros((0, 50)), np.zeros((0, 50, 50))))
@@ -379,3 +385,52 @@ def test_a_short_prefix_is_resampled_to_at_least_two_samples():
     rec = lib.recognize(human[:5], observed_fraction=0.004)  # round(0.4) = 0 samples: 2 are used
     assert rec.dof == 2 * 3
     assert lib.recognize(human[:20], observed_fraction=0.25).dof == 25 * 3
+
+
+def test_encoding_uses_the_configured_ridge_tolerance_and_start_subtraction():
+    """A component created by a demonstration sits at the weights computed here from the documented
+    pipeline: normalize (Eq. 14), arc-length resample the human, time-resample the robot, ridge (Eq. 3)."""
+    from drake_skills.promp.basis import ridge_weights
+    from drake_skills.promp.preprocessing import resample_in_time
+
+    rng = np.random.default_rng(14)
+    demo = synthetic_demo(2, rng, T=40)
+    noisy = Demonstration(t=demo.t, human=demo.human + 0.02 * rng.standard_normal(demo.human.shape), robot=demo.robot)
+    ws = Workspace([-5.0, -5.0, -5.0], [15.0, 15.0, 15.0])
+    for kw in (dict(ridge=1e-2), dict(resample_tolerance=0.1), dict(subtract_start=False, workspace=ws),
+               dict(subtract_start=False)):
+        cfg = LibraryConfig(**SMALL, **kw)
+        human = noisy.human
+        if cfg.workspace is not None:
+            human = ws.normalize(human, subtract_start=cfg.subtract_start)
+        elif cfg.subtract_start:
+            human = human - human[0]
+        y_h = resample_by_arc_length(human, 30, cfg.resample_tolerance)
+        y_r = resample_in_time(noisy.t, noisy.robot, 30)
+        w = np.r_[ridge_weights(y_h, cfg.basis_human, cfg.ridge), ridge_weights(y_r, cfg.basis_robot, cfg.ridge)]
+        lib = SkillLibrary(cfg)
+        lib.partial_fit(noisy)
+        np.testing.assert_allclose(lib.components[0].mean, w, rtol=1e-10, atol=1e-12, err_msg=str(kw))
+        assert lib.recognize(noisy.human).mahalanobis_sq[0] == pytest.approx(0.0, abs=1e-12)
+    default = SkillLibrary(LibraryConfig(**SMALL))
+    default.partial_fit(noisy)
+    assert not np.allclose(default.components[0].mean, lib.components[0].mean, atol=1e-3)
+
+
+def test_messages_of_an_unnamed_demonstration_say_demonstration():
+    lib = _lib(n=2)
+    d = synthetic_demo(0, np.random.default_rng(15), T=30)
+    _raises("demonstration: human trajectory does not move: its path length is 0", lib.partial_fit,
+            Demonstration(t=d.t, human=np.zeros((30, 3)), robot=d.robot))
+    _raises("demonstration: has no robot, the library has 7 robot joints", lib.partial_fit,
+            Demonstration(t=d.t, human=d.human))
+
+
+def test_deleted_support_is_recorded_to_six_decimals(tmp_path):
+    cfg = LibraryConfig(**SMALL)
+    rng = np.random.default_rng(16)
+    w = lf.encode(cfg, synthetic_demo(0, rng, T=30))
+    comps = [lf.component(0, w, 0.25 * np.eye(50), support=1.23456789, age=30)]
+    lib = SkillLibrary.load(lf.write_library(tmp_path / "old.npz", cfg, comps, dim_human=3, dim_robot=7))
+    assert lib.partial_fit(synthetic_demo(3, rng, T=30)).deleted == (0,)
+    assert lib.history[-1]["support"] == 1.234568

@@ -264,3 +264,67 @@ def test_best_pair_merges_first_in_the_log_domain_however_deep_inside_the_thresh
     u = lib.partial_fit(demo)
     assert u.updated == (0,)
     assert u.merged == ((0, 2), (0, 1))
+
+
+def test_a_young_component_does_not_stop_the_merge_check_of_the_others(tmp_path):
+    """A component no older than merge_min_age, listed first, is skipped; the pair after it still merges."""
+    lib, demo, _ = _two_close(tmp_path, support=2.0, consolidation=0.5, novelty_test="chi2")
+    cfg = lib.config
+    comps = [lf.component(7, lib.components[0].mean + 50.0, 1e-4 * np.eye(15), support=1.0, age=1)]
+    comps += [lf.component(c.id, c.mean, c.cov, support=c.support, age=c.age) for c in lib.components]
+    young_first = SkillLibrary.load(lf.write_library(tmp_path / "young.npz", cfg, comps, dim_human=3, dim_robot=0,
+                                                     next_id=8))
+    assert young_first.partial_fit(demo).merged == ((0, 1),)
+
+
+def _wide_unchanged_tight_changed(tmp_path, with_c):
+    """A wide (cov 0.25, support 4) and unchanged; B tight (1e-4) at d^2 ~ 3 under A's Gaussian, and the
+    demonstration sits on B (responsibility of A ~1e-11). Optionally C, tight, near A (d^2 ~ 2 under A)
+    but far from the demonstration (not updated). Floor 0.01."""
+    cfg = LibraryConfig(**SMALL, gating_floor=0.01)
+    rng = np.random.default_rng(5)
+    demo = synthetic_demo(0, rng, T=30, robot=False)
+    w = lf.encode(cfg, demo)
+    h = w.shape[0]
+    mean_a = w + np.sqrt(0.8) * _unit(rng, h)
+    comps = [lf.component(0, mean_a, 0.25 * np.eye(h), support=4.0, age=10),
+             lf.component(1, w, 1e-4 * np.eye(h), support=2.0, age=10)]
+    if with_c:
+        comps.append(lf.component(2, mean_a + np.sqrt(0.5) * _unit(rng, h), 1e-4 * np.eye(h), support=1.0,
+                                  age=10))
+    return SkillLibrary.load(lf.write_library(tmp_path / f"abc{with_c}.npz", cfg, comps, dim_human=3,
+                                              dim_robot=0)), demo
+
+
+def test_unchanged_component_checks_the_changed_one_under_its_own_covariance(tmp_path):
+    """Only A's Gaussian is wide enough for the pair: the merge is found from the unchanged component."""
+    lib, demo = _wide_unchanged_tight_changed(tmp_path, with_c=False)
+    u = lib.partial_fit(demo)
+    assert u.updated == (1,) and u.responsibilities[0] < 1e-6
+    assert u.merged == ((0, 1),)
+
+
+def test_component_changed_by_a_merge_is_checked_against_all_others(tmp_path):
+    """After absorbing B, A has changed: it is checked against C too, which the demonstration left alone."""
+    lib, demo = _wide_unchanged_tight_changed(tmp_path, with_c=True)
+    u = lib.partial_fit(demo)
+    assert u.updated == (1,) and u.responsibilities[2] < 1e-6
+    assert u.merged == ((0, 1), (0, 2))
+    assert [c.id for c in lib.components] == [0]
+
+
+def test_best_pair_is_compared_across_the_checking_components(tmp_path):
+    """A (tight, updated) and C (tight, at d^2 ~ 1.4 from A) find each other at ~0.1-0.2 of their
+    thresholds; B (wide, unchanged, listed last) finds A at ~0.4: the better pair, found first, is kept."""
+    cfg = LibraryConfig(**SMALL, gating_floor=0.01)
+    rng = np.random.default_rng(6)
+    demo = synthetic_demo(0, rng, T=30, robot=False)
+    w = lf.encode(cfg, demo)
+    h = w.shape[0]
+    comps = [lf.component(0, w, 1e-4 * np.eye(h), support=3.0, age=10),                                     # A
+             lf.component(1, w + np.sqrt(1.4 * 0.0101) * _unit(rng, h), 1e-4 * np.eye(h), support=1.0, age=10),  # C
+             lf.component(2, w + np.sqrt(4 * 0.26) * _unit(rng, h), 0.25 * np.eye(h), support=2.0, age=10)]  # B
+    lib = SkillLibrary.load(lf.write_library(tmp_path / "acb.npz", cfg, comps, dim_human=3, dim_robot=0))
+    u = lib.partial_fit(demo)
+    assert u.responsibilities[2] < 1e-6
+    assert u.merged[0] == (0, 1)
