@@ -49,7 +49,8 @@ def main(argv=None) -> int:
     for module in sorted(by_module):
         c = by_module[module]
         total.update(c)
-        _row(module, c)
+        if sum(c.values()) > c["not checked"]:  # modules outside MUTANTS are left out
+            _row(module, c)
     _row("all", total)
     if total["not checked"]:
         print(f"\n{total['not checked']} mutant(s) not checked: outside MUTANTS, or the run was interrupted")
