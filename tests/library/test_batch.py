@@ -207,3 +207,16 @@ def test_batch_em_messages_and_boundaries():
     _raises("weights W has only 2 distinct row(s), cannot fit 3 components", batch_em, W, 3)
     m = batch_em(X, 2.0, random_state=0)  # an integral float is a count
     assert m.n_components == 2 and abs(m.weights.sum() - 1) < 1e-12
+
+
+def test_zero_weight_component_gives_no_warning_and_one_column_is_enough():
+    import warnings
+
+    m = Mixture(np.array([0.0, 1.0]), np.zeros((2, 1)), np.ones((2, 1, 1)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # log(0) of the zero weight must not warn
+        out = m.component_log_densities(np.zeros((1, 1)))
+    assert out[0, 0] == -np.inf
+    one = labeled_ml(np.arange(6.0)[:, None], list("aabbcc"))
+    assert one.dim == 1 and one.labels == ("a", "b", "c")
+    _raises("reg_covar must be positive, got 0.0", batch_em, np.arange(12.0).reshape(6, 2), 2, reg_covar=0.0)

@@ -211,6 +211,21 @@ def _human_block_hidden_by_floor(covs):
     covs[0][H:, :H] = 0.0
 
 
+def _small_asymmetric_entry(covs):
+    """An entry of 1e-3 made asymmetric by 1e-10: beyond rtol 1e-9 and atol 1e-12, within numpy's defaults."""
+    covs[1][0, 5] = covs[1][5, 0] = 1e-3
+    covs[1][0, 5] += 1e-10
+
+
+def _set_min_eigenvalue(covs, k, relative):
+    """Make the smallest eigenvalue of covs[k] equal to relative * trace / d (the tolerance is 1e-12)."""
+    S = covs[k]
+    w, V = np.linalg.eigh(S)
+    w[0] = relative * np.sum(w) / len(w)
+    S = (V * w) @ V.T
+    covs[k] = 0.5 * (S + S.T)
+
+
 def _shorter(which):
     meta, means, covs = _good_parts()
     if which == "means":
@@ -240,7 +255,8 @@ METADATA_CASES = {
     "next_id_missing": (lambda: _meta_with(next_id=None), "bad metadata (TypeError"),
     "n_seen_text": (lambda: _meta_with(n_seen="many"), "bad metadata (ValueError"),
     "history_number": (lambda: _meta_with(history=3), "bad metadata (TypeError"),
-    "components_missing": (lambda: _meta_with(components=None), "bad metadata (TypeError"),
+    "components_missing": (lambda: _meta_with(components=None),
+                           "bad metadata (TypeError: components must be a list, got NoneType)"),
     "no_dimensions": (lambda: _meta_with(dim_human=None), "components but no dimensions"),
     "no_robot_dimension": (lambda: _meta_with(dim_robot=None), "components but no dimensions"),
     "wrong_dimension": (lambda: _meta_with(dim_human=2),
@@ -256,6 +272,11 @@ METADATA_CASES = {
     "negative_support": (lambda: _component_with(0, support=-1.0),
                          "component 0 has support -1.0, age 6, duration 1.2"),
     "negative_age": (lambda: _component_with(1, age=-1), "component 2 has support 1.5, age -1, duration 0.8"),
+    "asymmetric_1e-7": (lambda: _covs_with(lambda c: c.__setitem__((1, 0, 1), c[1, 0, 1] * (1 + 1e-7))),
+                        "covariance of component 2 is not symmetric"),
+    "asymmetric_small_entry": (lambda: _covs_with(_small_asymmetric_entry), "covariance of component 2 is not symmetric"),
+    "negative_eigenvalue_1e-10": (lambda: _covs_with(lambda c: _set_min_eigenvalue(c, 1, -1e-10)),
+                                  "covariance of component 2 is not positive definite"),
     "nan_duration": (lambda: _component_with(1, duration=float("nan")),
                      "component 2 has support 1.5, age 2, duration nan"),
     "inf_duration": (lambda: _component_with(0, duration=float("inf")),
@@ -291,6 +312,48 @@ def test_inconsistent_file_is_rejected_with_a_message_naming_it(tmp_path, case):
     assert str(e.value).startswith(f"library file '{p}'")
 
 
+def test_smallest_eigenvalue_within_rounding_is_accepted(tmp_path):
+    """An eigenvalue of -1e-13 trace/d (rounding of a PSD matrix) passes the check, at scale 1 and 100."""
+    for scale in (1.0, 100.0):
+        meta, means, covs = _good_parts()
+        covs = covs * scale
+        _set_min_eigenvalue(covs, 0, -1e-13)
+        assert SkillLibrary.load(lf.write(tmp_path / f"psd{scale}.npz", meta, means, covs)).n_components == 2
+
+
+def test_age_zero_and_integer_arrays_load(tmp_path):
+    """Ages are counts (0 is valid); integer arrays in a hand-written file are read as floats."""
+    meta, means, covs = _good_parts()
+    meta["components"][0]["age"] = 0
+    d = means.shape[1]
+    lib = SkillLibrary.load(lf.write(tmp_path / "ints.npz", meta, np.zeros((2, d), dtype=int),
+                                     np.stack([np.eye(d, dtype=int)] * 2)))
+    assert lib.components[0].age == 0
+    assert lib.components[0].mean.dtype == float and lib.components[1].cov.dtype == float
+
+
+def test_one_component_library_round_trips_and_an_empty_one_stores_no_rows(tmp_path):
+    rng = np.random.default_rng(3)
+    one = SkillLibrary(LibraryConfig())
+    one.partial_fit(synthetic_demo(0, rng))
+    back = SkillLibrary.load(one.save(tmp_path / "one.npz"))
+    np.testing.assert_array_equal(back.components[0].cov, one.components[0].cov)
+    SkillLibrary().save(tmp_path / "empty.npz")
+    with np.load(tmp_path / "empty.npz", allow_pickle=False) as z:
+        assert z["means"].shape[0] == 0 and z["covs"].shape[0] == 0
+
+
+def test_save_syncs_the_file_to_disk_before_renaming_it(lib, tmp_path, monkeypatch):
+    import os
+
+    calls = []
+    real_fsync, real_replace = os.fsync, os.replace
+    monkeypatch.setattr(os, "fsync", lambda fd: (calls.append("fsync"), real_fsync(fd))[1])
+    monkeypatch.setattr(os, "replace", lambda a, b: (calls.append("replace"), real_replace(a, b))[1])
+    lib.save(tmp_path / "lib.npz")
+    assert calls == ["fsync", "replace"]
+
+
 def test_symmetric_within_rounding_is_accepted(tmp_path):
     """Asymmetry at the level of float rounding (1e-15 relative) is not an error."""
     meta, means, covs = _covs_with(lambda c: c.__setitem__((1, 0, 1), c[1, 0, 1] * (1 + 1e-15)))
@@ -316,20 +379,20 @@ def test_unreadable_files_give_clear_errors(lib, tmp_path):
     for name, msg in cases.items():
         with pytest.raises(ValueError, match=re.escape(msg)) as e:
             SkillLibrary.load(tmp_path / name)
-        assert str(e.value).startswith(f"library file '{tmp_path / name}'"), e.value
+        assert str(e.value).startswith(f"library file '{tmp_path / name}' {msg}"), e.value
     with pytest.raises(FileNotFoundError, match=re.escape(f"library file '{tmp_path / 'missing.npz'}' does not exist")):
         SkillLibrary.load(tmp_path / "missing.npz")
 
 
 def test_corrupt_member_of_a_zip_is_a_clear_error(lib, tmp_path):
-    """A zip whose member is damaged (CRC or format) is reported as truncated, not as a numpy traceback."""
-    import zipfile
-
-    p = tmp_path / "bad_member.npz"
-    with zipfile.ZipFile(p, "w") as z:
-        z.writestr("metadata.npy", b"not an npy file at all")
-        z.writestr("means.npy", b"")
-        z.writestr("covs.npy", b"")
-    with pytest.raises(ValueError, match="library file .*bad_member.npz") as e:
+    """A library file whose zip directory is intact but whose data is damaged (CRC mismatch) is reported
+    as truncated or corrupt, naming the error, not as a zipfile traceback."""
+    p = tmp_path / "damaged.npz"
+    lib.save(p)
+    data = bytearray(p.read_bytes())
+    start = data.index(b"covs.npy") + 200  # inside the stored (uncompressed) covariance data
+    data[start:start + 16] = bytes(16)
+    p.write_bytes(bytes(data))
+    with pytest.raises(ValueError) as e:
         SkillLibrary.load(p)
-    assert "truncated" in str(e.value) or "cannot be read" in str(e.value)
+    assert str(e.value).startswith(f"library file '{p}' is truncated or not an .npz file (BadZipFile: "), e.value

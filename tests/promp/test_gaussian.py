@@ -366,3 +366,13 @@ def test_validate_gaussian_messages():
         g.validate_gaussian(np.zeros(2), np.eye(3))
     mean, cov = g.validate_gaussian([1, 2], [[1, 0], [0, 1]])
     assert mean.dtype == float and cov.dtype == float
+
+
+def test_mc_kl_mixtures_defaults_to_2000_samples_and_allows_zero_weights():
+    rng = np.random.default_rng(14)
+    p = (np.array([0.3, 0.7]), rng.standard_normal((2, 2)), np.stack([np.eye(2)] * 2))
+    q = (np.array([0.0, 1.0]), rng.standard_normal((2, 2)), np.stack([np.eye(2)] * 2))  # a zero weight is valid
+    assert g.mc_kl_mixtures(p, q, random_state=3) == g.mc_kl_mixtures(p, q, 2000, random_state=3)
+    assert g.mc_kl_mixtures(p, q, random_state=3) != g.mc_kl_mixtures(p, q, 2001, random_state=3)
+    with pytest.raises(ValueError, match=r"^mixture p weights must have 1 dimension\(s\), got shape \(1, 2\)$"):
+        g.mc_kl_mixtures((np.array([[0.5, 0.5]]), p[1], p[2]), q, 10, 0)

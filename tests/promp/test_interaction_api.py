@@ -200,3 +200,21 @@ def test_interaction_promp_messages():
     raises("2 human but 1 robot trajectories", _p().fit, [np.zeros((10, 2))] * 2, [np.zeros((10, 1))])
     assert p.condition_prefix(np.zeros((2, 2)), 1.0).mean_.shape == (13,)
     assert np.isfinite(p.log_likelihood_human(np.zeros((1, 2)), [0.5], cov_floor=0.0)[0])
+
+
+def test_conditioning_keeps_a_non_default_ridge_and_likelihood_has_no_floor_by_default():
+    rng = np.random.default_rng(9)
+    p = _p(ridge=1e-3)
+    p.fit_weights(rng.standard_normal((40, p.n_weights)))
+    y, z = rng.standard_normal((4, 2)), np.linspace(0, 0.6, 4)
+    assert p.condition(y, z).ridge == 1e-3
+    assert p.log_likelihood_human(y, z) == p.log_likelihood_human(y, z, cov_floor=0.0)
+    assert p.log_likelihood_human(y, z)[0] != p.log_likelihood_human(y, z, cov_floor=1.0)[0]
+
+
+def test_predict_robot_from_two_samples_and_rejects_a_scalar():
+    p = _fitted(np.random.default_rng(10))
+    two = np.array([[0.0, 0.0], [1.0, 1.0]])
+    np.testing.assert_array_equal(p.predict_robot(two)[0], p.condition(two, [0.0, 1.0]).robot_distribution(100)[0])
+    with pytest.raises(ValueError, match=r"^observed human samples must have shape \(any, 2\), got \(\)$"):
+        p.predict_robot(np.float64(1.0))

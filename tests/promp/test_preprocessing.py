@@ -311,3 +311,12 @@ def test_from_calibration_shrinks_the_chosen_axis_about_its_centre():
     np.testing.assert_allclose(z.lower, [0, 2, 0])
     np.testing.assert_allclose(z.upper, [4, 6, 2])
     assert z.scale == 2.0
+
+
+def test_vertex_indices_keep_only_samples_strictly_farther_than_the_tolerance():
+    """Exact binary fractions: 0.5 away from the last kept sample is not farther than 0.5."""
+    y = np.array([[0.0], [0.5], [1.0], [1.5]])
+    np.testing.assert_array_equal(vertex_indices(y, 0.5), [0, 2, 3])  # 3: the end, where it moved to
+    # a motion that never gets farther than the tolerance keeps its first and last samples
+    np.testing.assert_array_equal(vertex_indices(np.array([[0.0], [0.1], [0.2]]), 0.5), [0, 2])
+    np.testing.assert_array_equal(vertex_indices(np.array([[0.0], [0.1], [0.0]]), 0.5), [0])  # back at the start
