@@ -257,6 +257,7 @@ METADATA_CASES = {
     "history_number": (lambda: _meta_with(history=3), "bad metadata (TypeError"),
     "components_missing": (lambda: _meta_with(components=None),
                            "bad metadata (TypeError: components must be a list, got NoneType)"),
+    "components_number": (lambda: _meta_with(components=3), "bad metadata (TypeError: components must be a list, got int)"),
     "no_dimensions": (lambda: _meta_with(dim_human=None), "components but no dimensions"),
     "no_robot_dimension": (lambda: _meta_with(dim_robot=None), "components but no dimensions"),
     "wrong_dimension": (lambda: _meta_with(dim_human=2),

@@ -376,3 +376,13 @@ def test_mc_kl_mixtures_defaults_to_2000_samples_and_allows_zero_weights():
     assert g.mc_kl_mixtures(p, q, random_state=3) != g.mc_kl_mixtures(p, q, 2001, random_state=3)
     with pytest.raises(ValueError, match=r"^mixture p weights must have 1 dimension\(s\), got shape \(1, 2\)$"):
         g.mc_kl_mixtures((np.array([[0.5, 0.5]]), p[1], p[2]), q, 10, 0)
+
+
+def test_gmm_log_density_with_a_zero_weight_ignores_that_component_silently():
+    import warnings
+
+    means, chols = np.array([[0.0], [5.0]]), [np.eye(1), np.eye(1)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        out = g.gmm_log_density([[0.0]], [0.0, 1.0], means, chols)
+    assert out[0] == pytest.approx(multivariate_normal(5.0, 1.0).logpdf(0.0), rel=1e-12)
