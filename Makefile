@@ -1,4 +1,4 @@
-# make demo: create .venv, install, run the main job.  make test: the test suite.
+# make demo: create .venv, install, run the main job.  make test: the test suite.  make notebooks: JupyterLab.
 # make mutate: mutation testing of promp/ and library/ (minutes; not part of make test, see CONTRIBUTING.md).
 # Both first run setup/install_prereqs (system packages: Chromium for the browser test).
 PYTHON ?= python3.11
@@ -8,7 +8,7 @@ STAMP := $(VENV)/.installed
 DEV_STAMP := $(VENV)/.installed-dev
 export PYTHON
 
-.PHONY: demo test bench install prereqs clean mutate
+.PHONY: demo test bench notebooks install prereqs clean mutate
 
 prereqs:
 	@setup/install_prereqs
@@ -45,6 +45,11 @@ mutate: $(DEV_STAMP)
 		|| { tail -c 3000 mutants.log; echo "mutmut failed: see mutants.log"; exit 1; }
 	@mv mutants.log mutants/run.log
 	$(BIN)/python .ci/mutation_report.py --mutmut $(BIN)/mutmut
+
+# JupyterLab on localhost only, in notebooks/ (Ctrl-C stops it); as root it needs --allow-root
+notebooks: $(STAMP)
+	$(BIN)/python -m pip install --quiet -e ".[notebooks]"
+	$(BIN)/jupyter lab --ip=127.0.0.1 --notebook-dir=notebooks $$([ "$$(id -u)" = 0 ] && echo --allow-root) $(ARGS)
 
 clean:
 	rm -rf $(VENV) out mutants mutants.log

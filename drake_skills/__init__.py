@@ -4,6 +4,7 @@ learned one demonstration at a time and run as a Drake controller.
 Public names::
 
     from drake_skills import SkillLibrary, LibraryConfig, InteractionProMP, Demonstration
+    from drake_skills import Workspace, TaskVotes   # a person's workspace; task labels of components
 
 Importing the package does not import pydrake; only ``drake_skills.systems``
 and ``drake_skills.sim`` do.
@@ -17,7 +18,8 @@ _LAZY = {
     "InteractionProMP": "drake_skills.promp.interaction",
     "SkillLibrary": "drake_skills.library.incremental",
     "LibraryConfig": "drake_skills.library.incremental",
-    "Workspace": "drake_skills.promp.preprocessing",
+    "Workspace": "drake_skills.data.workspace",
+    "TaskVotes": "drake_skills.library.labels",
 }
 
 __all__ = sorted(_LAZY)

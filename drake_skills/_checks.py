@@ -86,3 +86,21 @@ def check_positive(value: float, name: str) -> float:
     if not np.isfinite(value) or value <= 0:
         raise ValueError(f"{name} must be a positive finite number, got {value!r}")
     return value
+
+
+def validated(obj):
+    """A copy of a dataclass tree built through the constructors, so every ``__post_init__`` runs.
+
+    Drake's ``yaml_load_typed`` fills a config by setting fields one at a time, which
+    skips validation; passing the result through here validates it as if it had
+    been built in Python. Lists and dicts are walked; other values are kept.
+    """
+    import dataclasses
+
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return type(obj)(**{f.name: validated(getattr(obj, f.name)) for f in dataclasses.fields(obj) if f.init})
+    if isinstance(obj, list):
+        return [validated(x) for x in obj]
+    if isinstance(obj, dict):
+        return {k: validated(v) for k, v in obj.items()}
+    return obj

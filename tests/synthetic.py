@@ -3,7 +3,10 @@ import numpy as np
 
 
 from drake_skills import Demonstration
+from drake_skills.data.workspace import Workspace
 
+#: The synthetic demos are in normalized units already: this workspace maps them to themselves (up to rounding).
+WORKSPACE = Workspace(np.zeros(3), np.full(3, 10.0))
 #: Goal of each synthetic skill in normalized units (the workspace is [0, 10]).
 GOALS = np.array([[6.0, 2.0, 1.0], [1.0, 6.0, 3.0], [-4.0, 3.0, 4.0], [2.0, -5.0, 2.0]])
 
@@ -20,5 +23,3 @@ def synthetic_demo(task: int, rng, *, T: int = 120, noise: float = 0.15, robot: 
     if robot:
         q = np.outer(s, np.r_[0.1 * goal, 0.05 * goal[:2], 0.3 * task, -0.2]) + 0.001 * rng.standard_normal((T, 7))
     return Demonstration(t=t, human=human, robot=q, task=str(task), name=f"synthetic_{task}")
-
-

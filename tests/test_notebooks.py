@@ -18,6 +18,8 @@ from jupyter_client.manager import KernelManager
 from nbclient import NotebookClient
 from nbformat.v4 import new_code_cell
 
+from shared_data import require
+
 NOTEBOOKS = Path(__file__).resolve().parents[1] / "notebooks"
 KERNEL = "drake_skills_test_python"
 #: Seconds any one cell may take (the whole reduced notebooks take a few seconds each).
@@ -56,7 +58,8 @@ def run_notebook(name: str, overrides: str, workdir: Path, kernel_dirs: list[str
 
 def test_notebooks_are_committed_without_outputs():
     paths = sorted(NOTEBOOKS.glob("*.ipynb"))
-    assert [p.name for p in paths] == ["01_letters.ipynb", "02_salad_library.ipynb", "03_drake_diagram.ipynb"]
+    assert [p.name for p in paths] == ["01_letters.ipynb", "02_salad_library.ipynb", "03_drake_diagram.ipynb",
+                                       "04_own_data.ipynb"]
     for path in paths:
         nb = nbformat.read(path, as_version=4)
         nbformat.validate(nb)
@@ -69,7 +72,7 @@ def test_letters_notebook_learns_five_letters_and_recognizes_held_out_ones(tmp_p
     s = run_notebook("01_letters.ipynb", "N_TRAIN = 3\nSNAPSHOTS = (1, 5)", tmp_path, kernel_dirs)
     assert s["components"] == 5 and s["demos_seen"] == 15
     assert sorted(s["component_letters"].values()) == ["GShape", "LShape", "NShape", "Sshape", "WShape"]
-    assert s["held_out"] == 20 and s["held_out_correct"] == 20
+    assert s["held_out"] == 20 and s["held_out_correct"] >= 19 and s["held_out_wrong"] == 0
     assert s["untaught_unknown"] is True
     assert "created=(0,)" in s["_outputs"] and "updated=(" in s["_outputs"]
 
@@ -95,3 +98,33 @@ def test_drake_diagram_notebook_runs_a_trial_and_writes_the_recording(tmp_path, 
     assert html.is_file() and html.stat().st_size > 100_000
     assert "<html" in html.read_text()[:2000].lower()
     assert "skill_gating" in s["_outputs"] and "inverse_dynamics_controller" in s["_outputs"]
+
+
+def test_own_data_notebook_goes_from_the_interaction_file_to_a_table_of_recognized_test_interactions(tmp_path,
+                                                                                                    kernel_dirs):
+    data = require("buetepage_hr.npz")
+    s = run_notebook("04_own_data.ipynb", f"DATA = {str(data)!r}\nN_TRAIN_PER_TASK = 5", tmp_path, kernel_dirs)
+    assert s["train"] == 20 and s["test"] == 9
+    assert s["files"] == ["hand_shake_00.npz", "hand_shake_01.npz", "hand_wave_00.npz", "hand_wave_01.npz",
+                          "parachute_00.npz", "parachute_01.npz", "parachute_02.npz", "rocket_00.npz",
+                          "rocket_01.npz", "workspace.json"]
+    assert set(s["decisions"].values()) <= {"skill", "undecided", "unknown"}
+    # a floor below today's figure (6 of 9 right, 0 wrong with 5 training interactions per task; 8 of 9 with
+    # all 32, as `drake-skills learn`), so that the test is about the worked example, not the library's tuning
+    assert s["right"] >= 4 and s["wrong"] <= 1, s
+    assert s["csv_header"] == "t,hx,hy,hz,q1,q2,q3,q4,q5,q6,q7,task"
+    assert len(s["units_warning"]) == 1 and "far below" in s["units_warning"][0]
+    assert "right," in s["_outputs"] and "components:" in s["_outputs"]
+
+
+def test_jupyter_is_an_extra_and_make_notebooks_serves_them_on_localhost():
+    """The README's way to open the notebooks: `make notebooks` installs the extra and runs JupyterLab."""
+    import tomllib
+
+    root = NOTEBOOKS.parent
+    extras = tomllib.loads((root / "pyproject.toml").read_text())["project"]["optional-dependencies"]
+    assert any(r.startswith("jupyterlab") for r in extras["notebooks"])
+    make = (root / "Makefile").read_text()
+    recipe = make.split("\nnotebooks:", 1)[1].split("\n\n", 1)[0]
+    assert ".[notebooks]" in recipe and "jupyter lab" in recipe and "--ip=127.0.0.1" in recipe
+    assert "--notebook-dir=notebooks" in recipe

@@ -1,8 +1,10 @@
 """Speed measurements (not tests), run with ``drake-skills bench``.
 
-Every module here with a ``run(quick: bool = False) -> list[dict]`` function
-is a suite; the command discovers them, so adding ``sim.py`` needs no
-registration. Rows are flat dicts with at least a ``name``.
+Every module here with a ``run(quick: bool = False, config=None) -> list[dict]``
+function is a suite; the command discovers them, so adding ``sim.py`` needs no
+registration. ``config`` is the ``SimConfig`` of ``--config`` (None: the suite's own
+settings); suites that build no library ignore it. Rows are flat dicts with at
+least a ``name``.
 """
 from __future__ import annotations
 

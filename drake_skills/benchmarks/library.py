@@ -17,7 +17,7 @@ from drake_skills.benchmarks._timing import median_ms
 from drake_skills.data.demonstration import Demonstration
 from drake_skills.library.incremental import LibraryConfig, SkillLibrary
 
-#: The benchmark's representation: 3-D wrist and 7 joints, 15 basis functions each.
+#: The benchmark's representation without --config: 3-D wrist and 7 joints, 15 basis functions each.
 CONFIG = dict(n_basis_human=15, n_basis_robot=15)
 T = 150
 
@@ -51,22 +51,24 @@ def _demo(bank, k: int, rng) -> Demonstration:
     return Demonstration(t=t, human=human + rng.normal(0, 0.01, (T, 3)), robot=robot)
 
 
-def _library_with(K: int, rng):
+def _library_with(K: int, rng, config: LibraryConfig):
     bank = _skill_bank(K, rng)
-    lib = SkillLibrary(LibraryConfig(**CONFIG))
+    lib = SkillLibrary(config)
     for k in range(K):  # three demos per skill in a row: support 3 survives the deletion rule
         for rep in range(3):
             lib.partial_fit(_demo(bank, k, rng))
     return lib, bank
 
 
-def run(quick: bool = False) -> list[dict]:
+def run(quick: bool = False, config=None) -> list[dict]:
+    """``config``: a SimConfig whose ``library`` is measured (default ``LibraryConfig(**CONFIG)``)."""
+    lib_config = config.library if config is not None else LibraryConfig(**CONFIG)
     rng = np.random.default_rng(0)
     rows = []
     repeats = 20 if quick else 200
     lib5 = None
     for K in (5, 20) if quick else (5, 20, 100):
-        lib, bank = _library_with(K, rng)
+        lib, bank = _library_with(K, rng, lib_config)
         demos = [_demo(bank, int(rng.integers(K)), rng) for _ in range(repeats)]
         it = iter(demos)
         ms = median_ms(lambda: lib.partial_fit(next(it)), repeats, warmup=False)
@@ -91,7 +93,7 @@ def run(quick: bool = False) -> list[dict]:
     K = 5
     bank = _skill_bank(K, rng)
     sizes = (50, 200) if quick else (50, 200, 1000)
-    lib = SkillLibrary(LibraryConfig(**CONFIG))
+    lib = SkillLibrary(lib_config)
     W = []
     stream = [_demo(bank, i % K, rng) for i in range(max(sizes) + 21)]
     pf_times = {}
@@ -99,7 +101,7 @@ def run(quick: bool = False) -> list[dict]:
         t0 = time.perf_counter()
         lib.partial_fit(d)
         dt = time.perf_counter() - t0
-        W.append(lib._encode(d))  # the weights a batch learner would have to keep
+        W.append(lib.encode(d))  # the weights a batch learner would have to keep
         for N in sizes:
             if N < n <= N + 20:
                 pf_times.setdefault(N, []).append(dt)

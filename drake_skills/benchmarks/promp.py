@@ -29,7 +29,8 @@ def _row(name, ours_ms, ref_ms, notes):
             "speedup": round(ref_ms / ours_ms, 1), "notes": notes}
 
 
-def run(quick: bool = False) -> list[dict]:
+def run(quick: bool = False, config=None) -> list[dict]:
+    """The ProMP core has no library settings: ``config`` is ignored."""
     from movement_primitives.promp import ProMP
 
     rng = np.random.default_rng(0)

@@ -1,12 +1,127 @@
-"""One module per ``drake-skills`` subcommand; see ``drake_skills.cli``."""
+"""One module per ``drake-skills`` subcommand; see ``drake_skills.cli``.
+
+The conventions every command follows (the README's "Command line" says the same):
+
+* ``--out DIR`` is always a directory, default ``./out/<command>``; a command writes its
+  files inside it under fixed names (``learn``: ``DIR/library.npz``), creating it if
+  needed, and rewrites all of them on every run, so that nothing left from an earlier
+  run can be taken for this one's.
+* An existing input is named by its own option or argument (``learn --library LIB``
+  extends a library, ``recognize LIB PATH...``), never by ``--out``.
+* ``--seed`` only where something is random (the presentation order of ``learn``, the
+  simulated data and trials of ``generate``, ``demo`` and ``eval``).
+* ``-v`` (debug messages) is accepted before or after the command.
+"""
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
 
-def add_common(parser: argparse.ArgumentParser, command: str, *, seed: int = 0) -> None:
-    """Add the options every command has: ``--seed`` and ``--out``."""
-    parser.add_argument("--seed", type=int, default=seed, help=f"random seed (default {seed})")
-    parser.add_argument("--out", type=Path, default=Path("out") / command,
-                        help=f"directory for artifacts (default ./out/{command})")
+def add_out(parser: argparse.ArgumentParser, command: str, what: str = "artifacts") -> None:
+    """Add ``--out DIR`` (default ``./out/<command>``)."""
+    parser.add_argument("--out", type=Path, default=Path("out") / command, metavar="DIR",
+                        help=f"directory for {what} (default ./out/{command}); rewritten on every run")
+
+
+def add_seed(parser: argparse.ArgumentParser, seed: int | None = 0, seed_help: str | None = None) -> None:
+    """Add ``--seed``; ``seed=None`` leaves it unset unless given (e.g. to keep a config file's seed)."""
+    parser.add_argument("--seed", type=int, default=seed, help=seed_help or f"random seed (default {seed})")
+
+
+def add_common(parser: argparse.ArgumentParser, command: str, *, seed: int | None = 0,
+               seed_help: str | None = None) -> None:
+    """Add ``--seed`` and ``--out`` (for commands where something is random)."""
+    add_seed(parser, seed, seed_help)
+    add_out(parser, command)
+
+
+def add_config(parser: argparse.ArgumentParser) -> None:
+    """Add ``--config``: a YAML of SimConfig or LibraryConfig fields (see ``drake_skills.sim.config``)."""
+    parser.add_argument("--config", type=Path, default=None, metavar="YAML",
+                        help="YAML file: SimConfig fields (drake_skills.sim.config; library settings under "
+                             "'library:', the gating under 'decision:'), or LibraryConfig fields alone "
+                             "(drake_skills.library.config); default: the defaults")
+
+
+#: Files that give the workspace of the demonstrations in their folder, in order of preference.
+WORKSPACE_FILES = ("workspace.json", "calibration.npz")
+
+
+def add_workspace(parser: argparse.ArgumentParser) -> None:
+    """Add ``--workspace FILE`` (a workspace.json or a calibration .npz for every file)."""
+    parser.add_argument("--workspace", "--calibration", dest="workspace", type=Path, default=None, metavar="FILE",
+                        help="workspace.json ({\"lower\", \"upper\", \"scale\"}) or calibration .npz for every "
+                             "file (default: the nearest workspace.json or calibration.npz in the file's folder "
+                             "or above it, up to the folder given)")
+
+
+class WorkspaceFinder:
+    """The workspace of each demonstration file: one given for all, or found beside it.
+
+    Looks for :data:`WORKSPACE_FILES` in the file's folder, then in each parent up to
+    and including ``root``; each workspace file is read once.
+    """
+
+    def __init__(self, given: Path | None, root: Path):
+        from drake_skills.data.demos import load_workspace
+
+        self._load = load_workspace
+        self._given = None if given is None else (load_workspace(given), Path(given))
+        self._root = Path(root).resolve()
+        self._cache: dict[Path, object] = {}
+
+    def __call__(self, demo_file) -> tuple:
+        """``(Workspace or None, the file it came from or None)``."""
+        if self._given is not None:
+            return self._given
+        folder = Path(demo_file).resolve().parent
+        while True:
+            for name in WORKSPACE_FILES:
+                f = folder / name
+                if f.is_file():
+                    if f not in self._cache:
+                        self._cache[f] = self._load(f)
+                    return self._cache[f], f
+            if folder == self._root or self._root not in folder.parents:
+                return None, None
+            folder = folder.parent
+
+
+def scan_paths(paths: list[Path]):
+    """Demonstration files named, or found in the folders named: ``[(demo, root)]`` and the notes.
+
+    A folder is scanned with :func:`drake_skills.data.demos.scan_dir` (each demonstration
+    once, non-demonstration files skipped with a note); its files' workspaces are looked
+    for up to that folder. A file is read as it is; its workspace is looked for beside it.
+    """
+    from drake_skills.data.demos import load_demo, scan_dir
+
+    out, notes = [], []
+    for p in paths:
+        p = Path(p)
+        if p.is_dir():
+            scan = scan_dir(p)
+            notes += scan.notes()
+            out += [(d, p) for d in scan.demos]
+        elif p.is_file():
+            out.append((load_demo(p), p.parent))
+        else:
+            raise FileNotFoundError(f"'{p}' does not exist")
+    return out, notes
+
+
+def tasks_file(library: Path) -> Path:
+    """The sidecar of a library file that holds its components' task labels: ``<stem>.tasks.json``."""
+    library = Path(library)
+    return library.with_name(library.stem + ".tasks.json")
+
+
+def short_name(name: str | None, root: Path) -> str:
+    """``name`` relative to ``root`` when it lies inside it (for tables), else as it is."""
+    if not name:
+        return "?"
+    try:
+        return str(Path(name).resolve().relative_to(Path(root).resolve()))
+    except ValueError:
+        return name

@@ -1,14 +1,15 @@
-"""``drake-skills eval letters|salad``: the paper's experiments (Sec. 4), written as tables and plots."""
+"""``drake-skills eval letters|salad|sensitivity|interaction|scale``: the experiments, written as tables and plots."""
 from __future__ import annotations
 
 import argparse
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 
 def register(sub) -> None:
-    from drake_skills.commands import add_common
+    from drake_skills.commands import add_common, add_config
     from drake_skills.evaluation.common import available_workers
 
     p = sub.add_parser("eval", help="run the paper's experiments (letters, salad) and write tables and plots",
@@ -28,6 +29,7 @@ def register(sub) -> None:
         q.add_argument("--workers", type=int, default=available_workers(),
                        help="processes for the trials (default: available cores); results do not depend on it")
         q.add_argument("--no-progress", action="store_true", help="no progress bars")
+        add_config(q)  # the library settings of every library the experiment learns
 
     q = esub.add_parser("letters", help="Sec. 4.1: incremental library vs batch EM vs labeled ML on LASA letters")
     common(q, "letters", 100)
@@ -46,6 +48,63 @@ def register(sub) -> None:
     q.add_argument("--splits", type=int, default=None, help="salad train/test splits per subject (default 10)")
     q.set_defaults(func=run_sensitivity)
 
+    from drake_skills.data.interaction import SHARED_ENV, shared_data_path
+
+    q = esub.add_parser("interaction", help="real human-robot interactions (buetepage_hr.npz): recognition, "
+                                            "components, robot response and anticipation on the source's split",
+                        description="Learn the training interactions of --data in random orders with the library "
+                                    "settings (default LibraryConfig(); workspace = the bounding box of the "
+                                    "training wrists) and report, on the source's test split: recognition "
+                                    "(correct / wrong / undecided / unknown), components found, the robot "
+                                    "response error of predict_robot beside a task-mean baseline, and "
+                                    "recognition of path prefixes with the phase estimated (anticipation).")
+    add_common(q, "eval/interaction")
+    q.add_argument("--data", type=Path, default=shared_data_path("buetepage_hr.npz"),
+                   help=f"interactions file (default: ../shared/data/buetepage_hr.npz beside the repository, "
+                        f"or under ${SHARED_ENV}/data)")
+    q.add_argument("--columns", choices=("hand", "arm"), default="hand",
+                   help="human columns: the hand/wrist (6:9, default) or the whole arm (shoulder, elbow, hand: 0:9)")
+    q.add_argument("--orders", type=int, default=20, help="random orders of the training interactions (default 20)")
+    q.add_argument("--rate", type=float, default=100.0,
+                   help="sampling rate of the file in Hz (not stated by the source; default 100)")
+    q.add_argument("--quick", action="store_true", help="reduced run: 2 orders, fractions 0.1, 0.5, 1.0")
+    q.add_argument("--workers", type=int, default=available_workers(),
+                   help="processes for the orders (default: available cores); results do not depend on it")
+    q.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_config(q)
+    q.set_defaults(func=run_interaction)
+
+    q = esub.add_parser("scale", help="many skills in one library: LASA-30, and synthetic skills from 10 to 1000",
+                        description="LASA-30 in one library (4 demonstrations per shape taught in random order, "
+                                    "the other 3 recognized) and synthetic skills at K = 10 ... 1000 (interleaved "
+                                    "and in a row): components found, correct / wrong / undecided / unknown, ms per "
+                                    "update and per recognition. Runs in one process (the timings compare).")
+    add_common(q, "eval/scale")
+    q.add_argument("--quick", action="store_true", help="reduced run (what the tests use)")
+    q.add_argument("--orders", type=int, default=None, help="random orders of LASA-30 (default 3, --quick: 1)")
+    q.add_argument("--sizes", type=int, nargs="+", default=None, metavar="K",
+                   help="numbers of synthetic skills (default 10 30 100 300 1000, --quick: 10 30)")
+    q.add_argument("--no-progress", action="store_true", help="no progress bars")
+    add_config(q)
+    q.set_defaults(func=run_scale)
+
+
+def run_interaction(args: argparse.Namespace) -> int:
+    from drake_skills.evaluation.common import use_agg
+    from drake_skills.evaluation.interaction import InteractionSettings, evaluate_interaction
+
+    use_agg()
+    t0 = time.time()
+    if not Path(args.data).is_file():
+        raise FileNotFoundError(f"interactions file '{args.data}' does not exist (give --data PATH)")
+    kw = dict(data=str(args.data), columns=args.columns, orders=args.orders, rate_hz=args.rate, seed=args.seed,
+              library=_library(args))
+    if args.quick:
+        kw.update(orders=2, fractions=(0.1, 0.5, 1.0))
+    rep = evaluate_interaction(InteractionSettings(**kw), workers=args.workers, progress=not args.no_progress)
+    rep.summary["command"] = " ".join(["drake-skills", "eval", "interaction"] + sys.argv[3:])
+    return _finish(rep, args.out, t0)
+
 
 def _finish(rep, out: Path, t0: float) -> int:
     paths = rep.write(out)
@@ -56,38 +115,56 @@ def _finish(rep, out: Path, t0: float) -> int:
     return 0
 
 
+def _library(args: argparse.Namespace):
+    """The LibraryConfig of ``--config`` (the defaults without it)."""
+    from drake_skills.sim.config import load_library_config
+
+    return load_library_config(args.config)
+
+
 def run_letters(args: argparse.Namespace) -> int:
     from drake_skills.evaluation.common import use_agg
     from drake_skills.evaluation.letters import LettersSettings, evaluate_letters
 
     use_agg()
     t0 = time.time()
-    s = LettersSettings(seed=args.seed)
+    kw = dict(seed=args.seed, library=_library(args))
     if args.quick:
-        s.trials, s.kl_samples, s.em_n_init = 4, 500, 2
+        kw.update(trials=4, kl_samples=500, em_n_init=2)
     if args.trials is not None:
-        s.trials = args.trials
-    rep = evaluate_letters(s, workers=args.workers, progress=not args.no_progress)
+        kw["trials"] = args.trials
+    rep = evaluate_letters(LettersSettings(**kw), workers=args.workers, progress=not args.no_progress)
     rep.summary["command"] = " ".join(["drake-skills", "eval", "letters"] + sys.argv[3:])
     return _finish(rep, args.out, t0)
 
 
 def run_salad(args: argparse.Namespace) -> int:
     from drake_skills.evaluation.common import use_agg
-    from drake_skills.evaluation.salad import SaladSettings, evaluate_salad
+    from drake_skills.evaluation.salad import evaluate_salad
+    from drake_skills.evaluation.salad_data import SaladSettings
 
     use_agg()
     t0 = time.time()
-    s = SaladSettings.quick(seed=args.seed) if args.quick else SaladSettings(seed=args.seed)
-    if args.trials is not None:
-        s.trials = args.trials
-    if args.subjects is not None:
-        s.n_subjects = args.subjects
-    if args.demos is not None:
-        s.n_demos = args.demos
-    s.data_seed = args.data_seed
+    base = SaladSettings.quick(seed=args.seed) if args.quick else SaladSettings(seed=args.seed)
+    overrides = {"trials": args.trials, "n_subjects": args.subjects, "n_demos": args.demos}
+    s = replace(base, data_seed=args.data_seed, library=_library(args),
+                **{k: v for k, v in overrides.items() if v is not None})  # validated again
     rep = evaluate_salad(s, workers=args.workers, progress=not args.no_progress, cache_dir=args.out / "cache")
     rep.summary["command"] = " ".join(["drake-skills", "eval", "salad"] + sys.argv[3:])
+    return _finish(rep, args.out, t0)
+
+
+def run_scale(args: argparse.Namespace) -> int:
+    from drake_skills.evaluation.common import use_agg
+    from drake_skills.evaluation.scale import ScaleSettings, evaluate_scale
+
+    use_agg()
+    t0 = time.time()
+    base = ScaleSettings.quick(seed=args.seed) if args.quick else ScaleSettings(seed=args.seed)
+    overrides = {"lasa_orders": args.orders, "sizes": tuple(args.sizes) if args.sizes else None}
+    s = replace(base, library=_library(args), **{k: v for k, v in overrides.items() if v is not None})
+    rep = evaluate_scale(s, progress=not args.no_progress)
+    rep.summary["command"] = " ".join(["drake-skills", "eval", "scale"] + sys.argv[3:])
     return _finish(rep, args.out, t0)
 
 
@@ -95,13 +172,9 @@ def run_sensitivity(args: argparse.Namespace) -> int:
     from drake_skills.evaluation.sensitivity import SensitivitySettings, evaluate_sensitivity
 
     t0 = time.time()
-    s = SensitivitySettings.quick(seed=args.seed) if args.quick else SensitivitySettings(seed=args.seed)
-    if args.trials is not None:
-        s.letter_orders = args.trials
-    if args.splits is not None:
-        s.salad_splits = args.splits
-    if s.letter_orders < 1 or s.salad_splits < 1:
-        raise SystemExit("drake-skills eval sensitivity: --trials and --splits must be >= 1")
+    base = SensitivitySettings.quick(seed=args.seed) if args.quick else SensitivitySettings(seed=args.seed)
+    overrides = {"letter_orders": args.trials, "salad_splits": args.splits}
+    s = replace(base, library=_library(args), **{k: v for k, v in overrides.items() if v is not None})
     rep = evaluate_sensitivity(s, workers=args.workers, progress=not args.no_progress,
                                cache_dir=args.out / "cache")
     rep.summary["command"] = " ".join(["drake-skills", "eval", "sensitivity"] + sys.argv[3:])

@@ -28,9 +28,32 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+def _remove_previous(out: Path) -> None:
+    """Delete what an earlier ``generate`` listed in ``out/manifest.json`` (its files and calibrations), nothing else.
+
+    A run with fewer subjects or demonstrations would otherwise leave the earlier run's
+    extra files beside its own, and ``learn`` would read them.
+    """
+    manifest = out / "manifest.json"
+    if not manifest.is_file():
+        return
+    try:
+        old = json.loads(manifest.read_text())
+        if "scenario" not in old:
+            raise KeyError("scenario")
+        paths = [out / f["path"] for f in old["files"]]
+        paths += [out / s["name"] / "calibration.npz" for s in old["subjects"]]
+    except (ValueError, KeyError, TypeError):
+        raise ValueError(f"'{manifest}' is not the manifest of `drake-skills generate`: choose another --out") from None
+    for p in paths:
+        for f in (p, p.with_suffix(".csv")):
+            if f.resolve().is_relative_to(out.resolve()) and f.is_file():
+                f.unlink()
+
+
 def run(args: argparse.Namespace) -> int:
     from drake_skills.data.demos import save_calibration, save_csv, save_npz
-    from drake_skills.data.salad import SLOPPY_SUBJECTS, TASKS, generate_subject
+    from drake_skills.scenario.salad import SLOPPY_SUBJECTS, TASKS, generate_subject
 
     tasks = tuple(args.tasks) if args.tasks else TASKS
     unknown = [t for t in tasks if t not in TASKS]
@@ -40,6 +63,7 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("--subjects and --demos must be at least 1")
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
+    _remove_previous(out)
     manifest = {"scenario": args.scenario, "seed": args.seed, "subjects": [], "tasks": list(tasks),
                 "demos_per_task": args.demos, "rate_hz": 150.0, "files": []}
     start = time.perf_counter()

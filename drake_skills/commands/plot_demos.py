@@ -10,7 +10,7 @@ TASK_COLOURS = {"board": "tab:blue", "tomato": "tab:red", "bowl": "tab:green", "
 
 
 def register(sub) -> None:
-    from drake_skills.commands import add_common
+    from drake_skills.commands import add_out
 
     p = sub.add_parser(
         "plot-demos", help="plot the human wrist trajectories of one subject (top and front views)",
@@ -19,7 +19,7 @@ def register(sub) -> None:
                     "Fig. 5(b). Writes OUT/demos.png.")
     p.add_argument("demos_dir", type=Path, metavar="DIR", help="directory of demonstrations (searched recursively)")
     p.add_argument("--subject", default=None, help="subject to plot (default: the first one found)")
-    add_common(p, "plot-demos")
+    add_out(p, "plot-demos", "demos.png")
     p.set_defaults(func=run)
 
 
@@ -76,9 +76,12 @@ def plot_demos(demos, title: str = ""):
 
 
 def run(args: argparse.Namespace) -> int:
-    from drake_skills.data.demos import load_dir
+    from drake_skills.data.demos import scan_dir
 
-    demos = load_dir(args.demos_dir)
+    scan = scan_dir(args.demos_dir)
+    for note in scan.notes():
+        print(f"note: {note}")
+    demos = scan.demos
     if not demos:
         raise ValueError(f"no demonstrations (.npz or .csv) found under '{args.demos_dir}'")
     subjects = sorted({d.subject for d in demos if d.subject}, key=lambda s: (len(s), s))

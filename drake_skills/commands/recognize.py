@@ -1,67 +1,187 @@
-"""``drake-skills recognize LIB DEMO``: which skill is this motion, and what should the robot do."""
+"""``drake-skills recognize LIB PATH...``: which skill is each motion, and what should the robot do."""
 from __future__ import annotations
 
 import argparse
+import csv
+import io
 import json
 from pathlib import Path
 
 import numpy as np
 
+from drake_skills.commands import add_out, add_workspace
+
+#: Columns of the printed table and of recognition.csv.
+COLUMNS = ("file", "true task", "decision", "skill", "d2", "confidence")
+
 
 def register(sub) -> None:
     p = sub.add_parser(
-        "recognize", help="recognize the skill of a human motion and predict the robot's response",
-        description="Load a library and a demonstration file; print the recognized component (or 'unknown') "
-                    "with the responsibilities and, for a library with a robot part, write the conditioned "
-                    "robot trajectory (Eq. 13) to OUT/prediction.npz.")
-    p.add_argument("library", type=Path, metavar="LIB", help="library file (.npz) from 'drake-skills learn'")
-    p.add_argument("demo", type=Path, metavar="DEMO", help="demonstration file (.npz or .csv); only the human part is used")
+        "recognize", help="recognize the skill of human motions and predict the robot's response",
+        description="Load a library and demonstration files (or folders of them, searched recursively) and "
+                    "print a table: file, true task (the file's label, if any), decision (skill, undecided: "
+                    "more than one skill fits and none clearly, or unknown: no skill fits), the skill's task "
+                    "name (from the library's .tasks.json written by `learn`) and component id, d2 (squared "
+                    "Mahalanobis distance to the best or nearest component; above the novelty limit printed "
+                    "under the table a motion is unknown) and the confidence. Only the human part of each file "
+                    "is used. Writes OUT/recognition.json and OUT/recognition.csv (the table) and, for a "
+                    "library with a robot part, OUT/predictions.npz: the conditioned robot trajectory (Eq. 13) "
+                    "of every file decided 'skill' in this run, named by file and component.")
+    p.add_argument("library", type=Path, metavar="LIB", help="library file (.npz) from `drake-skills learn`")
+    p.add_argument("paths", type=Path, nargs="+", metavar="PATH",
+                   help="demonstration files (.npz, .csv) or folders of them")
     p.add_argument("--fraction", type=float, default=1.0,
-                   help="observe only this fraction of the motion's path (default 1.0)")
-    p.add_argument("--calibration", type=Path, default=None,
-                   help="calibration.npz of the subject (default: the one beside DEMO, if any)")
-    from drake_skills.commands import add_common
-
-    add_common(p, "recognize")
+                   help="observe only this fraction of each motion's path (default 1.0, the whole motion)")
+    add_workspace(p)
+    add_out(p, "recognize", "recognition.json, recognition.csv and predictions.npz")
     p.set_defaults(func=run)
+
+
+def _prefix(lib, human, fraction: float, ws):
+    """The first samples of ``human`` covering ``fraction`` of its path, as the library measures it."""
+    if fraction >= 1:
+        return human
+    total = lib.path_length(human, workspace=ws)
+    lo, hi = 2, human.shape[0]
+    while lo < hi:  # the shortest prefix whose path reaches the fraction
+        mid = (lo + hi) // 2
+        if lib.path_length(human[:mid], workspace=ws) >= fraction * total:
+            hi = mid
+        else:
+            lo = mid + 1
+    return human[:lo]
 
 
 def run(args: argparse.Namespace) -> int:
     from drake_skills import SkillLibrary
-    from drake_skills.data.demos import load_calibration, load_demo
-    from drake_skills.promp.preprocessing import Workspace
+    from drake_skills.commands import WorkspaceFinder, scan_paths, short_name, tasks_file
+    from drake_skills.data.demos import check_layout
+    from drake_skills.library.labels import TaskVotes
+    from drake_skills.library.novelty import chi2_ppf
 
+    if not 0 < args.fraction <= 1:
+        raise ValueError(f"--fraction must be in (0, 1], got {args.fraction}")
     lib = SkillLibrary.load(args.library)
-    demo = load_demo(args.demo)
-    cal = args.calibration or (args.demo.parent / "calibration.npz")
-    ws = None
-    if cal.exists():
-        motions = load_calibration(cal)
-        ws = Workspace.from_calibration(list(motions.values()) if isinstance(motions, dict) else motions,
-                                        z_factor=0.9)
-    human = demo.human
-    if args.fraction < 1:
-        # keep the samples up to the given fraction of the path length
-        step = np.linalg.norm(np.diff(human, axis=0), axis=1)
-        cut = int(np.searchsorted(np.cumsum(step), args.fraction * step.sum())) + 1
-        human = human[: max(cut, 2) + 1]
-    rec = lib.recognize(human, observed_fraction=args.fraction, workspace=ws)
-    label = "unknown (ask for a demonstration)" if rec.component is None else f"component {rec.component}"
-    print(f"{args.demo}: {label}" + (f"  [true task: {demo.task}]" if demo.task else ""))
-    for k, r, d2 in sorted(zip(rec.ids, rec.responsibilities, rec.mahalanobis_sq), key=lambda x: -x[1]):
-        print(f"  component {k:3d}: responsibility {r:.3f}  Mahalanobis^2 {d2:9.1f} (dof {rec.dof})")
-    out = {"demo": str(args.demo), "component": rec.component, "ids": list(rec.ids),
-           "responsibilities": rec.responsibilities.tolist(), "mahalanobis_sq": rec.mahalanobis_sq.tolist()}
-    args.out.mkdir(parents=True, exist_ok=True)
-    if rec.component is not None and lib.has_robot:
-        mean, cov = lib.predict_robot(human, args.fraction, workspace=ws, component=rec.component)
-        duration = lib.component(rec.component).duration
-        np.savez(args.out / "prediction.npz", t=np.linspace(0, duration, mean.shape[0]), robot_mean=mean, robot_cov=cov)
-        print(f"  robot: {mean.shape[0]} samples over {duration:.2f} s, final q = {np.round(mean[-1], 3).tolist()}")
-        if demo.robot is not None:
-            err = np.abs(mean[-1] - demo.robot[-1]).max()
-            out["final_joint_error_rad"] = float(err)
-            print(f"  max final joint error vs the demonstration: {err:.4f} rad")
-        print(f"  wrote {args.out / 'prediction.npz'}")
-    (args.out / "recognition.json").write_text(json.dumps(out, indent=2))
+    if lib.dim_human_ is None or not lib.n_components:
+        raise ValueError(f"library file '{args.library}' has no components: learn some demonstrations first")
+    labels = tasks_file(args.library)
+    votes = TaskVotes.from_dict(json.loads(labels.read_text())) if labels.is_file() else TaskVotes()
+    found, notes = scan_paths(args.paths)
+    for note in notes:
+        print(f"note: {note}")
+    if not found:
+        raise ValueError(f"no demonstrations (.npz or .csv) found in {', '.join(map(str, args.paths))}")
+    for d, _ in found:
+        check_layout(d, lib.dim_human_, lib.dim_robot_, f"the library '{args.library}'")
+    finders = {}
+    rows, preds, raw = [], [], []
+    for d, root in found:
+        find = finders.setdefault(root, WorkspaceFinder(args.workspace, root))
+        ws, _ = find(d.name)
+        if ws is None:
+            raw.append(d.name)
+        try:
+            human = _prefix(lib, d.human, args.fraction, ws)
+            rec = lib.recognize(human, observed_fraction=args.fraction, workspace=ws)
+        except ValueError as exc:
+            raise ValueError(f"demo '{d.name}': {exc}") from None
+        near = rec.ids.index(rec.best) if rec.best is not None else int(np.argmin(rec.mahalanobis_sq))
+        comp = rec.component
+        row = {"file": short_name(d.name, root), "path": d.name, "true task": d.task, "decision": rec.status,
+               "component": comp, "task": votes.label_of(comp), "nearest": rec.ids[near],
+               "d2": float(rec.mahalanobis_sq[near]), "dof": int(rec.dof if np.ndim(rec.dof) == 0 else rec.dof[near]),
+               "confidence": rec.confidence}
+        if comp is not None and lib.has_robot:
+            mean, cov = lib.predict_robot(human, args.fraction, workspace=ws, component=comp)
+            duration = lib.component(comp).duration
+            preds.append((d.name, comp, np.linspace(0.0, duration, mean.shape[0]), mean, cov))
+            if d.robot is not None and args.fraction == 1:
+                row["final_joint_error_rad"] = float(np.abs(mean[-1] - d.robot[-1]).max())
+        rows.append(row)
+    print(format_table(rows))
+    dofs = sorted({r["dof"] for r in rows})
+    limits = ", ".join(f"{chi2_ppf(lib.config.novelty_quantile, k):.1f} for {k} dof" for k in dofs)
+    print(f"d2: squared Mahalanobis distance to the best (or, if unknown, the nearest) component;\n"
+          f"    a motion is unknown to a component beyond {limits} (chi-square {lib.config.novelty_quantile} quantile)")
+    counts = _counts(rows)
+    if counts:
+        print("labeled files: " + ", ".join(f"{v} {k}" for k, v in counts.items()))
+    if raw:
+        print(f"note: {len(raw)} file(s) had no workspace.json or calibration.npz beside them (nor --workspace): "
+              f"their positions were taken as already normalized")
+    out = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    result = {"library": str(args.library), "tasks": str(labels) if labels.is_file() else None,
+              "fraction": args.fraction, "files": rows, "counts": counts, "skipped": notes,
+              "without_workspace": raw}
+    (out / "recognition.json").write_text(json.dumps(result, indent=2) + "\n")
+    (out / "recognition.csv").write_text(format_csv(rows))
+    written = [out / "recognition.json", out / "recognition.csv"]
+    pred_path = out / "predictions.npz"
+    if lib.has_robot:
+        _save_predictions(pred_path, preds, lib.dim_robot_, lib.config.n_samples)
+        written.append(pred_path)
+    elif pred_path.exists():
+        pred_path.unlink()  # an earlier run's, with another library: it belongs to nothing here
+    print(f"wrote {', '.join(str(p) for p in written)}"
+          + (f" ({len(preds)} robot trajectories)" if lib.has_robot else ""))
     return 0
+
+
+def _save_predictions(path: Path, preds: list, dim_robot: int, n_steps: int) -> None:
+    """Arrays ``files`` (n,), ``component`` (n,), ``t`` (n, T), ``robot_mean`` (n, T, D_r), ``robot_cov`` (n, T, D_r, D_r)."""
+    from drake_skills._io import atomic_write
+
+    n = len(preds)
+    arrays = {
+        "format": np.array("drake-skills predictions"),
+        "files": np.array([p[0] for p in preds], dtype=str).reshape(n),
+        "component": np.array([p[1] for p in preds], dtype=np.int64).reshape(n),
+        "t": np.stack([p[2] for p in preds]) if n else np.zeros((0, n_steps)),
+        "robot_mean": np.stack([p[3] for p in preds]) if n else np.zeros((0, n_steps, dim_robot)),
+        "robot_cov": np.stack([p[4] for p in preds]) if n else np.zeros((0, n_steps, dim_robot, dim_robot)),
+    }
+    atomic_write(path, lambda f: np.savez(f, **arrays))
+
+
+def _counts(rows: list[dict]) -> dict:
+    """Right / wrong / undecided / unknown over the files with a true task, when the skills have task names."""
+    labeled = [r for r in rows if r["true task"] is not None]
+    if not labeled or not any(r["task"] for r in rows):
+        return {}
+    c = {"right skill": 0, "wrong skill": 0, "undecided": 0, "unknown": 0}
+    for r in labeled:
+        if r["decision"] == "skill":
+            c["right skill" if r["task"] == r["true task"] else "wrong skill"] += 1
+        else:
+            c[r["decision"]] += 1
+    return {"files": len(labeled), **c}
+
+
+def _cells(r: dict) -> list[str]:
+    skill = "-" if r["component"] is None else f"{r['task'] or '?'} ({r['component']})"
+    conf = "" if r["decision"] == "unknown" else f"{r['confidence']:.2f}"
+    return [r["file"], r["true task"] or "-", r["decision"], skill, f"{r['d2']:.1f}", conf]
+
+
+def format_table(rows: list[dict]) -> str:
+    """The rows as an aligned text table with :data:`COLUMNS`."""
+    cells = [list(COLUMNS)] + [_cells(r) for r in rows]
+    widths = [max(len(c[i]) for c in cells) for i in range(len(COLUMNS))]
+    right = {4, 5}
+    lines = ["  ".join(c.rjust(w) if i in right else c.ljust(w) for i, (c, w) in enumerate(zip(row, widths)))
+             for row in cells]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    return "\n".join(line.rstrip() for line in lines)
+
+
+def format_csv(rows: list[dict]) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["file", "true_task", "decision", "task", "component", "d2", "dof", "confidence"])
+    for r in rows:
+        w.writerow([r["path"], r["true task"] or "", r["decision"], r["task"] or "",
+                    "" if r["component"] is None else r["component"], f"{r['d2']:.6g}", r["dof"],
+                    f"{r['confidence']:.6g}"])
+    return buf.getvalue()
+

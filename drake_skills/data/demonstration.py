@@ -1,11 +1,20 @@
-"""The ``Demonstration`` type: one coupled human (+ robot) trajectory."""
+"""The ``Demonstration`` type: one coupled human (+ robot) trajectory, and how it is written to a file.
+
+The writers are here so that ``Demonstration.save`` needs nothing above this module;
+the readers, folders and calibration files are in :mod:`drake_skills.data.demos`,
+which also documents the layouts.
+"""
 from __future__ import annotations
 
+import csv
+import io
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from drake_skills._checks import as_finite_array, check_increasing
+from drake_skills._io import atomic_write
 
 #: Fewest samples a demonstration may have (the basis fit needs a few points).
 MIN_SAMPLES = 5
@@ -83,7 +92,76 @@ class Demonstration:
     def dim_robot(self) -> int:
         return 0 if self.robot is None else int(self.robot.shape[1])
 
+    def save(self, path: str | Path) -> Path:
+        """Write the demonstration to ``path``, as ``.npz`` or ``.csv`` by its suffix.
+
+        npz: arrays ``t`` (T,), ``human`` (T, D_h), ``robot`` (T, D_r) if any, and the
+        labels as 0-d strings; CSV: header ``t,hx,hy,hz,q1,...,q7[,task,subject]``
+        (``h1..hD`` for more than 3 human columns), 17 significant digits, so both
+        read back exactly with :func:`drake_skills.data.demos.load_demo`. The write
+        is atomic.
+
+        Returns
+        -------
+        Path
+            The written file.
+        """
+        path = Path(path)
+        suffix = path.suffix.lower()
+        if suffix == ".npz":
+            return save_npz(self, path)
+        if suffix == ".csv":
+            return save_csv(self, path)
+        raise ValueError(f"demo '{path}': cannot save as {path.suffix or 'a file without suffix'}; "
+                         f"use .npz or .csv")
+
     def __repr__(self) -> str:
         r = "None" if self.robot is None else f"{self.robot.shape}"
         return (f"Demonstration(T={self.n_samples}, human={self.human.shape}, robot={r}, "
                 f"task={self.task!r}, subject={self.subject!r})")
+
+
+def human_columns(d: int) -> list[str]:
+    """CSV names of ``d`` human columns: ``hx, hy, hz`` (up to 3), else ``h1 .. hD``."""
+    return list(("hx", "hy", "hz")[:d]) if d <= 3 else [f"h{i + 1}" for i in range(d)]
+
+
+def save_npz(demo: Demonstration, path: str | Path) -> Path:
+    """Write ``demo`` to ``path`` (.npz, uncompressed, no pickled objects).
+
+    Returns
+    -------
+    Path
+        The written file.
+    """
+    path = Path(path)
+    arrays = {"t": demo.t, "human": demo.human}
+    if demo.robot is not None:
+        arrays["robot"] = demo.robot
+    for label in ("task", "subject"):
+        value = getattr(demo, label)
+        if value is not None:
+            arrays[label] = np.array(value, dtype=str)
+    atomic_write(path, lambda f: np.savez(f, **arrays))
+    return path
+
+
+def save_csv(demo: Demonstration, path: str | Path) -> Path:
+    """Write ``demo`` as CSV with header ``t,hx,hy,hz,q1,...,q7[,task,subject]``.
+
+    Numbers are written with 17 significant digits (exact float64 round trip).
+    """
+    path = Path(path)
+    header = ["t"] + human_columns(demo.dim_human) + [f"q{i + 1}" for i in range(demo.dim_robot)]
+    labels = [k for k in ("task", "subject") if getattr(demo, k) is not None]
+    header += labels
+    cols = [demo.t[:, None], demo.human] + ([demo.robot] if demo.robot is not None else [])
+    data = np.concatenate(cols, axis=1)
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(header)
+    extra = [getattr(demo, k) for k in labels]
+    for row in data:
+        w.writerow([repr(float(x)) for x in row] + extra)
+    atomic_write(path, lambda f: f.write(buf.getvalue().encode()))
+    return path

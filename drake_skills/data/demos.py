@@ -9,27 +9,42 @@ csv
     ``q1 .. qD`` (none for human-only data), then optional label columns.
 Calibration
     ``calibration.npz`` with one (T_i, D) array per motion (``xy``, ``zy`` for the salad
-    scenario); :func:`load_dir` skips it.
+    scenario); :func:`load_dir` skips it. A ``workspace.json`` (``{"lower": [...],
+    "upper": [...], "scale": 10}``, :meth:`Workspace.save <drake_skills.data.workspace.Workspace.save>`)
+    gives the bounds directly; :func:`load_workspace` reads either.
 
-Every malformed file raises ``ValueError`` naming the file and the problem.
+A folder of demonstrations (:func:`scan_dir`) holds each demonstration once: an npz and
+a CSV of the same name are one demonstration if they hold the same data, or an error.
+Files of the folder that are not demonstrations (calibration files, a library or
+predictions saved there, a CSV table) are skipped with a note; one that looks like a
+demonstration but is malformed is an error. Every malformed file raises ``ValueError``
+naming the file and the problem.
 """
 from __future__ import annotations
 
 import csv
 import io
+import logging
 import re
 import zipfile
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from drake_skills._checks import as_finite_array
 from drake_skills._io import atomic_write
-from drake_skills.data.demonstration import Demonstration
+from drake_skills.data.demonstration import Demonstration, human_columns as _human_columns, save_csv, save_npz
+from drake_skills.data.workspace import Workspace
+
+log = logging.getLogger(__name__)
 
 #: Suffixes of demonstration files.
 DEMO_SUFFIXES = (".npz", ".csv")
 _HUMAN_XYZ = ("hx", "hy", "hz")
+__all__ = ["DEMO_SUFFIXES", "DirScan", "check_layout", "columns_of", "is_calibration_file", "load_calibration",
+           "load_csv", "load_demo", "load_dir", "load_npz", "load_workspace", "save_calibration", "save_csv",
+           "save_npz", "scan_dir"]
 
 
 def _read_npz(path: Path, where: str) -> dict[str, np.ndarray]:
@@ -52,26 +67,6 @@ def _read_npz(path: Path, where: str) -> dict[str, np.ndarray]:
 
 
 # --------------------------------------------------------------------------- npz
-def save_npz(demo: Demonstration, path: str | Path) -> Path:
-    """Write ``demo`` to ``path`` (.npz, uncompressed, no pickled objects).
-
-    Returns
-    -------
-    Path
-        The written file.
-    """
-    path = Path(path)
-    arrays = {"t": demo.t, "human": demo.human}
-    if demo.robot is not None:
-        arrays["robot"] = demo.robot
-    for label in ("task", "subject"):
-        value = getattr(demo, label)
-        if value is not None:
-            arrays[label] = np.array(value, dtype=str)
-    atomic_write(path, lambda f: np.savez(f, **arrays))
-    return path
-
-
 def _numeric(a: np.ndarray, key: str, where: str) -> np.ndarray:
     if a.dtype.kind not in "fiu":
         raise ValueError(f"{where}: '{key}' has dtype {a.dtype}, expected numbers")
@@ -109,31 +104,6 @@ def load_npz(path: str | Path) -> Demonstration:
 
 
 # --------------------------------------------------------------------------- csv
-def _human_columns(d: int) -> list[str]:
-    return list(_HUMAN_XYZ[:d]) if d <= 3 else [f"h{i + 1}" for i in range(d)]
-
-
-def save_csv(demo: Demonstration, path: str | Path) -> Path:
-    """Write ``demo`` as CSV with header ``t,hx,hy,hz,q1,...,q7[,task,subject]``.
-
-    Numbers are written with 17 significant digits (exact float64 round trip).
-    """
-    path = Path(path)
-    header = ["t"] + _human_columns(demo.dim_human) + [f"q{i + 1}" for i in range(demo.dim_robot)]
-    labels = [k for k in ("task", "subject") if getattr(demo, k) is not None]
-    header += labels
-    cols = [demo.t[:, None], demo.human] + ([demo.robot] if demo.robot is not None else [])
-    data = np.concatenate(cols, axis=1)
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(header)
-    extra = [getattr(demo, k) for k in labels]
-    for row in data:
-        w.writerow([repr(float(x)) for x in row] + extra)
-    atomic_write(path, lambda f: f.write(buf.getvalue().encode()))
-    return path
-
-
 def load_csv(path: str | Path) -> Demonstration:
     """Read a demonstration written by :func:`save_csv` (or by hand, same header).
 
@@ -221,19 +191,188 @@ def is_calibration_file(path: str | Path) -> bool:
     return Path(path).name.lower().startswith("calibration")
 
 
-def load_dir(directory: str | Path) -> list[Demonstration]:
-    """All demonstrations (.npz, .csv) under ``directory``, recursively, sorted by path.
+@dataclass
+class DirScan:
+    """What :func:`scan_dir` found in a folder of demonstrations.
 
-    Calibration files are skipped. Raises ``FileNotFoundError`` if the directory does
-    not exist and ``ValueError`` (naming the file) on the first malformed file.
+    Attributes
+    ----------
+    demos : list of Demonstration
+        One per demonstration, sorted by path.
+    skipped : list of (Path, str)
+        Files that are not demonstrations, with the reason.
+    duplicates : list of (Path, Path)
+        (kept, same): a CSV read once because the npz of the same name holds the same data.
+    """
+
+    demos: list = field(default_factory=list)
+    skipped: list = field(default_factory=list)
+    duplicates: list = field(default_factory=list)
+
+    def notes(self) -> list[str]:
+        """One line per skipped file and per demonstration found twice."""
+        out = [f"skipped '{p}': {why}" for p, why in self.skipped]
+        out += [f"read '{a}' once: '{b.name}' holds the same demonstration" for a, b in self.duplicates]
+        return out
+
+
+def _not_a_demo(path: Path) -> str | None:
+    """Why ``path`` (a .npz or .csv) is not a demonstration file, or None if it should be read as one."""
+    if is_calibration_file(path):
+        return "a calibration file (it gives the subject's workspace)"
+    if path.suffix.lower() == ".npz":
+        if not zipfile.is_zipfile(path):
+            return None  # load_npz says what is wrong with it
+        try:
+            with zipfile.ZipFile(path) as z:
+                names = {n[:-4] if n.endswith(".npy") else n for n in z.namelist()}
+        except (zipfile.BadZipFile, OSError):
+            return None
+        if "metadata" in names:
+            return "a drake-skills library file"
+        if "format" in names:
+            return "a drake-skills output file (not a demonstration)"
+        if not names & {"t", "human"}:
+            return f"an npz without the arrays of a demonstration (t, human): has {sorted(names)[:6]}"
+        return None
+    try:
+        with open(path, newline="") as f:
+            first = f.readline()
+    except (OSError, UnicodeDecodeError):
+        return None
+    header = [c.strip() for c in next(csv.reader([first]), [])]
+    if header and header[0] != "t" and not any(c in _HUMAN_XYZ or re.fullmatch(r"h\d+", c) for c in header):
+        return f"a CSV without the columns of a demonstration (t, hx, ...): header {','.join(header[:6])!r}"
+    return None
+
+
+def _same_demo(a: Demonstration, b: Demonstration) -> str | None:
+    """What differs between two demonstrations (None if they are the same, to CSV precision)."""
+    for name in ("t", "human", "robot"):
+        x, y = getattr(a, name), getattr(b, name)
+        if (x is None) != (y is None):
+            return "only one has a robot trajectory"
+        if x is not None and (x.shape != y.shape or not np.allclose(x, y, rtol=1e-9, atol=1e-12)):
+            return f"'{name}' differs (shapes {x.shape} and {y.shape})"
+    for label in ("task", "subject"):
+        if getattr(a, label) != getattr(b, label):
+            return f"{label} {getattr(a, label)!r} vs {getattr(b, label)!r}"
+    return None
+
+
+def scan_dir(directory: str | Path) -> DirScan:
+    """The demonstrations under ``directory`` (recursively), each once, and the files skipped.
+
+    ``.npz`` and ``.csv`` files are read; hidden files are ignored. An npz and a CSV
+    of the same name in the same folder are one demonstration (the npz is kept) when
+    they hold the same data (within 1e-9 relative, the CSV's precision), else an
+    error. Calibration files, library files, drake-skills output files and CSV
+    tables are skipped (:attr:`DirScan.skipped`).
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``directory`` does not exist.
+    ValueError
+        Naming the file, on the first malformed demonstration, or naming both files
+        of a name that holds two different demonstrations.
     """
     directory = Path(directory)
     if not directory.is_dir():
         raise FileNotFoundError(f"demonstration directory '{directory}' does not exist")
     files = sorted(p for p in directory.rglob("*")
-                   if p.is_file() and p.suffix.lower() in DEMO_SUFFIXES and not is_calibration_file(p)
-                   and not p.name.startswith("."))
-    return [load_demo(p) for p in files]
+                   if p.is_file() and p.suffix.lower() in DEMO_SUFFIXES and not p.name.startswith("."))
+    scan = DirScan()
+    by_name: dict[tuple[Path, str], Path] = {}
+    for p in files:
+        why = _not_a_demo(p)
+        if why is not None:
+            scan.skipped.append((p, why))
+            continue
+        demo = load_demo(p)
+        key = (p.parent, p.stem.lower())
+        if key in by_name:
+            first = by_name[key]
+            kept = next(d for d in scan.demos if d.name == str(first))
+            diff = _same_demo(kept, demo)
+            if diff is not None:
+                raise ValueError(f"demo '{first}' and '{p.name}' have the same name but hold different "
+                                 f"demonstrations ({diff}): keep one of them")
+            npz_first = first.suffix.lower() == ".npz"
+            if not npz_first:  # keep the npz (exact binary) in the list
+                scan.demos[scan.demos.index(kept)] = demo
+                by_name[key] = p
+            scan.duplicates.append((p, first) if not npz_first else (first, p))
+            continue
+        by_name[key] = p
+        scan.demos.append(demo)
+    return scan
+
+
+def load_dir(directory: str | Path) -> list[Demonstration]:
+    """All demonstrations under ``directory``, each once, sorted by path (see :func:`scan_dir`).
+
+    What was skipped or read once is logged (INFO). Raises ``FileNotFoundError`` if the
+    directory does not exist and ``ValueError`` (naming the file) on the first
+    malformed file.
+    """
+    scan = scan_dir(directory)
+    for note in scan.notes():
+        log.info("%s", note)
+    return scan.demos
+
+
+# --------------------------------------------------------------------------- layout
+def columns_of(dim_human: int, dim_robot: int) -> list[str]:
+    """The CSV columns of a demonstration with these dimensions (without the labels)."""
+    return ["t"] + _human_columns(dim_human) + [f"q{i + 1}" for i in range(dim_robot)]
+
+
+def _span(cols: list[str]) -> str:
+    return ", ".join(cols) if len(cols) <= 3 else f"{cols[0]}..{cols[-1]}"
+
+
+def check_layout(demo: Demonstration, dim_human: int, dim_robot: int, declared_by: str) -> None:
+    """Raise unless ``demo`` has ``dim_human`` human and ``dim_robot`` robot columns.
+
+    The error names the file and the missing (or extra) columns, e.g. ``demo 'a.csv':
+    missing column 'hz' (...)``; ``declared_by`` says where the dimensions come from
+    (the library's first demonstration, or an existing library).
+    """
+    if (demo.dim_human, demo.dim_robot) == (dim_human, dim_robot):
+        return
+    where = f"demo '{demo.name}'" if demo.name else "demonstration"
+    want, have = columns_of(dim_human, dim_robot), columns_of(demo.dim_human, demo.dim_robot)
+    problems = []
+    missing = [c for c in want if c not in have]
+    extra = [c for c in have if c not in want]
+    if missing:
+        problems.append(f"missing column{'s' if len(missing) > 1 else ''} {', '.join(repr(c) for c in missing)}")
+    if extra:
+        problems.append(f"extra column{'s' if len(extra) > 1 else ''} {', '.join(repr(c) for c in extra)}")
+    h_want, r_want = _human_columns(dim_human), [f"q{i + 1}" for i in range(dim_robot)]
+    layout = f"t, {_span(h_want)}" + (f", {_span(r_want)}" if r_want else " (no robot)")
+    raise ValueError(f"{where}: {'; '.join(problems)}: the library's dimensions are declared by {declared_by}, "
+                     f"which has {layout}")
+
+
+def load_workspace(path: str | Path, *, z_factor: float = 0.9) -> Workspace:
+    """The workspace of a ``workspace.json`` (its bounds) or a ``calibration*.npz`` (Sec. 4.2.2).
+
+    A calibration file gives the per-axis range of its motions, the third axis
+    shrunk to ``z_factor`` about its centre (the paper's 0.9: people stretch out more
+    when calibrating than when working).
+    """
+    path = Path(path)
+    if path.suffix.lower() == ".json":
+        return Workspace.load(path)
+    if path.suffix.lower() == ".npz":
+        motions = list(load_calibration(path).values())
+        try:
+            return Workspace.from_calibration(motions, z_factor=z_factor if motions[0].shape[1] > 2 else None)
+        except ValueError as exc:
+            raise ValueError(f"calibration '{path}': {exc}") from None
+    raise ValueError(f"workspace '{path}': expected a workspace .json or a calibration .npz")
 
 
 # --------------------------------------------------------------------------- calibration

@@ -27,7 +27,7 @@ import numpy as np
 
 from drake_skills._checks import as_finite_array
 from drake_skills.data.demonstration import MIN_SAMPLES, Demonstration
-from drake_skills.promp.preprocessing import Workspace
+from drake_skills.data.workspace import Workspace
 
 #: The five letter shapes of the letter experiment (see the module docstring).
 DEFAULT_LETTERS: tuple[str, ...] = ("GShape", "LShape", "NShape", "Sshape", "WShape")

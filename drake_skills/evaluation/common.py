@@ -12,7 +12,6 @@ on how many workers there are; :func:`run_trials` returns results in trial order
 from __future__ import annotations
 
 import csv
-import logging
 import os
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
@@ -20,8 +19,6 @@ from pathlib import Path
 from typing import Any, Callable, Sequence
 
 import numpy as np
-
-log = logging.getLogger(__name__)
 
 
 def available_workers() -> int:
@@ -44,7 +41,36 @@ def trial_rng(seed: int, index: int, stream: int = 0) -> np.random.Generator:
     stream : int
         Separates independent experiments that share a seed.
     """
-    return np.random.default_rng(np.random.SeedSequence([int(seed), int(stream), int(index)]))
+    return stream_rng(seed, stream, index)
+
+
+def stream_rng(seed: int, stream: int, *ids: int) -> np.random.Generator:
+    """The generator of one trial named by several ids: ``SeedSequence([seed, stream, *ids])``."""
+    return np.random.default_rng(np.random.SeedSequence([int(seed), int(stream), *map(int, ids)]))
+
+
+def nested_streams(tasks: Sequence[str], perm: np.ndarray, n_max: int) -> list[list[int]]:
+    """For k = 1..n_max: the indices of ``perm`` among the first k of their task, in ``perm`` order.
+
+    Parameters
+    ----------
+    tasks : sequence of str
+        The task of each item.
+    perm : array, shape (n,)
+        A permutation of the items (the presentation order).
+    n_max : int
+
+    Returns
+    -------
+    list of list of int
+        Nested streams: stream k holds k items of every task (fewer if a task has fewer).
+    """
+    rank, counts = {}, {}
+    for j in perm:
+        t = tasks[j]
+        rank[j] = counts.get(t, 0)
+        counts[t] = rank[j] + 1
+    return [[int(j) for j in perm if rank[j] < k] for k in range(1, n_max + 1)]
 
 
 # The context of the trials running in this process (set by the pool initializer).

@@ -6,9 +6,9 @@ Protocol (one *trial* = one random order of all demonstrations):
 2. For ``k = 1 .. n_demos`` samples per class, the stream is the permutation
    restricted to the first ``k`` demonstrations of each shape (in permutation
    order), so the streams are nested and each one is presented in random order.
-3. Fold the stream into a fresh :class:`SkillLibrary` (default
-   :class:`LibraryConfig`, workspace = the bounding box of all letters).
-4. Encode the same demonstrations with ``lib._encode`` (the library's own
+3. Fold the stream into a fresh :class:`SkillLibrary` (``LettersSettings.library``,
+   default :class:`LibraryConfig`; workspace = the bounding box of all letters).
+4. Encode the same demonstrations with ``lib.encode`` (the library's own
    weight space) and fit the labeled maximum-likelihood baseline
    (:func:`labeled_ml`) and batch EM given the true number of shapes
    (:func:`batch_em`).
@@ -19,13 +19,18 @@ For letters the gating and expert spaces coincide (human-only data).
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
-from typing import Sequence
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
-from drake_skills.evaluation.common import (EvalReport, Table, count_distribution, fig_kl_vs_samples, run_trials,
-                                           trial_rng)
+from drake_skills.data.demonstration import Demonstration
+from drake_skills.data.lasa import DEFAULT_LETTERS, lasa_workspace, load_lasa
+from drake_skills.data.workspace import Workspace
+from drake_skills.evaluation.common import (EvalReport, Table, count_distribution, fig_kl_vs_samples, nested_streams,
+                                           run_trials, trial_rng)
+from drake_skills.library.batch import batch_em, labeled_ml
+from drake_skills.library.incremental import LibraryConfig, SkillLibrary
+from drake_skills.promp.gaussian import mc_kl_mixtures
 
 STREAM_LETTERS = 1
 
@@ -48,50 +53,61 @@ class LettersSettings:
     snapshots: tuple[int, ...] = (1, 5, 15, 35)
     #: Experiment seed.
     seed: int = 0
+    #: Settings of every library (its workspace is replaced by the letters' bounding box).
+    library: LibraryConfig = field(default_factory=LibraryConfig)
+
+    def __post_init__(self):
+        for name, lo in (("trials", 1), ("kl_samples", 1), ("em_n_init", 1), ("n_demos", 1)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or int(v) != v or v < lo:
+                raise ValueError(f"LettersSettings.{name} must be an integer >= {lo}, got {v!r}")
+        if self.n_demos > 7:
+            raise ValueError(f"LettersSettings.n_demos must be at most 7 (LASA has 7 per shape), got {self.n_demos}")
+        if any(int(k) != k or k < 1 for k in self.snapshots):
+            raise ValueError(f"LettersSettings.snapshots must be positive integers, got {self.snapshots!r}")
+        if not isinstance(self.library, LibraryConfig):
+            raise ValueError(f"LettersSettings.library must be a LibraryConfig, got {type(self.library).__name__}")
 
 
-def _letters_context(settings: LettersSettings):
-    from drake_skills.data.lasa import DEFAULT_LETTERS, lasa_workspace, load_lasa
+@dataclass(frozen=True, eq=False)
+class LettersContext:
+    """What every order reads: the letters, their bounding-box workspace, the shapes and the settings."""
 
-    shapes = tuple(settings.shapes or DEFAULT_LETTERS)
-    demos = load_lasa(shapes, n_demos=settings.n_demos)
-    return {"demos": demos, "workspace": lasa_workspace(demos), "shapes": shapes, "settings": settings}
+    demos: tuple[Demonstration, ...]
+    workspace: Workspace
+    shapes: tuple[str, ...]
+    settings: LettersSettings
 
-
-def _nested_streams(tasks: Sequence[str], perm: np.ndarray, n_max: int) -> list[list[int]]:
-    """For k = 1..n_max: the indices of ``perm`` among the first k of their task, in ``perm`` order."""
-    rank, counts = {}, {}
-    for j in perm:
-        t = tasks[j]
-        rank[j] = counts.get(t, 0)
-        counts[t] = rank[j] + 1
-    return [[int(j) for j in perm if rank[j] < k] for k in range(1, n_max + 1)]
+    @classmethod
+    def of(cls, settings: LettersSettings) -> "LettersContext":
+        shapes = tuple(settings.shapes or DEFAULT_LETTERS)
+        demos = load_lasa(shapes, n_demos=settings.n_demos)
+        return cls(tuple(demos), lasa_workspace(demos), shapes, settings)
 
 
-def letters_trial(ctx: dict, index: int) -> dict:
-    """One random order: KL of the incremental library and of EM to the labeled baseline, per k.
+@dataclass(frozen=True, eq=False)
+class LettersTrial:
+    """One random order; arrays over k = 1..n_demos samples per class."""
 
-    Returns
-    -------
-    dict with arrays over k = 1..n_demos: ``kl_incremental``, ``kl_em``,
-    ``n_components``, and ``n_components_final`` (all demonstrations).
-    """
-    from drake_skills import LibraryConfig, SkillLibrary
-    from drake_skills.library.batch import batch_em, labeled_ml
-    from drake_skills.promp.gaussian import mc_kl_mixtures
+    kl_incremental: np.ndarray
+    kl_em: np.ndarray
+    n_components: np.ndarray
 
-    s: LettersSettings = ctx["settings"]
-    demos, ws = ctx["demos"], ctx["workspace"]
-    n_shapes = len(ctx["shapes"])
+
+def letters_trial(ctx: LettersContext, index: int) -> LettersTrial:
+    """One random order: KL of the incremental library and of EM to the labeled baseline, per k."""
+    s = ctx.settings
+    demos, ws = ctx.demos, ctx.workspace
+    n_shapes = len(ctx.shapes)
     rng = trial_rng(s.seed, index, STREAM_LETTERS)
     tasks = [d.task for d in demos]
     perm = rng.permutation(len(demos))
     kl_inc, kl_em, n_comp = [], [], []
-    for stream in _nested_streams(tasks, perm, s.n_demos):
-        lib = SkillLibrary(LibraryConfig(workspace=ws))
+    for stream in nested_streams(tasks, perm, s.n_demos):
+        lib = SkillLibrary(replace(s.library, workspace=ws))
         for j in stream:
             lib.partial_fit(demos[j])
-        W = np.stack([lib._encode(demos[j], ws) for j in stream])
+        W = np.stack([lib.encode(demos[j], ws) for j in stream])
         labels = [tasks[j] for j in stream]
         base = labeled_ml(W, labels).as_tuple()
         em = batch_em(W, n_shapes, random_state=int(rng.integers(2 ** 31 - 1)), n_init=s.em_n_init)
@@ -99,7 +115,7 @@ def letters_trial(ctx: dict, index: int) -> dict:
         kl_inc.append(mc_kl_mixtures(base, lib.as_mixture("gating"), s.kl_samples, random_state=kl_seed))
         kl_em.append(mc_kl_mixtures(base, em.as_tuple(), s.kl_samples, random_state=kl_seed))
         n_comp.append(lib.n_components)
-    return {"kl_incremental": np.array(kl_inc), "kl_em": np.array(kl_em), "n_components": np.array(n_comp)}
+    return LettersTrial(np.array(kl_inc), np.array(kl_em), np.array(n_comp))
 
 
 def _trajectory_band(lib, comp, dim: int, n: int = 100):
@@ -113,7 +129,7 @@ def _trajectory_band(lib, comp, dim: int, n: int = 100):
     return Phi @ m, np.sqrt(np.maximum(var, 0.0))
 
 
-def library_growth(ctx: dict, order_seed: int) -> dict:
+def library_growth(ctx: LettersContext, order_seed: int) -> dict:
     """Learn one library in a random order and keep snapshots (Fig. 3).
 
     Returns
@@ -122,13 +138,11 @@ def library_growth(ctx: dict, order_seed: int) -> dict:
     ``samples`` (normalized resampled human paths of every demo, in order),
     ``n_components`` after each demonstration.
     """
-    from drake_skills import LibraryConfig, SkillLibrary
-
-    s: LettersSettings = ctx["settings"]
-    demos, ws = ctx["demos"], ctx["workspace"]
+    s = ctx.settings
+    demos, ws = ctx.demos, ctx.workspace
     rng = trial_rng(order_seed, 0, STREAM_LETTERS + 100)
     order = rng.permutation(len(demos))
-    lib = SkillLibrary(LibraryConfig(workspace=ws))
+    lib = SkillLibrary(replace(s.library, workspace=ws))
     snaps, n_comp = {}, []
     wanted = set(min(k, len(demos)) for k in s.snapshots)
     for i, j in enumerate(order, start=1):
@@ -136,7 +150,7 @@ def library_growth(ctx: dict, order_seed: int) -> dict:
         n_comp.append(lib.n_components)
         if i in wanted:
             snaps[i] = [(*_trajectory_band(lib, c, 0), c.id) for c in lib.components]
-    samples = [lib._human_samples(demos[j].human, ws) for j in order]
+    samples = [lib.human_samples(demos[j].human, workspace=ws) for j in order]
     return {"order": order, "snapshots": snaps, "samples": samples, "n_components": np.array(n_comp),
             "final": lib}
 
@@ -206,14 +220,14 @@ def evaluate_letters(settings: LettersSettings | None = None, *, workers: int = 
         figures ``kl_vs_samples`` (Fig. 4b), ``library_growth`` (Fig. 3),
         ``components_hist``.
     """
-    s = settings or LettersSettings()
-    ctx = _letters_context(s)
-    n_shapes, n_total = len(ctx["shapes"]), len(ctx["demos"])
+    s = settings if settings is not None else LettersSettings()
+    ctx = LettersContext.of(s)
+    n_shapes, n_total = len(ctx.shapes), len(ctx.demos)
     results = run_trials(letters_trial, range(s.trials), ctx, workers=workers, desc="letters: orders",
                          progress=progress)
-    inc = np.stack([r["kl_incremental"] for r in results])  # (trials, n_demos)
-    em = np.stack([r["kl_em"] for r in results])
-    nc = np.stack([r["n_components"] for r in results])
+    inc = np.stack([r.kl_incremental for r in results])  # (trials, n_demos)
+    em = np.stack([r.kl_em for r in results])
+    nc = np.stack([r.n_components for r in results])
     ks = np.arange(1, s.n_demos + 1)
 
     rows = []
@@ -236,7 +250,7 @@ def evaluate_letters(settings: LettersSettings | None = None, *, workers: int = 
                        caption=f"Components found after all {n_total} demonstrations, over {s.trials} orders.")
     rep = EvalReport("Letters (Sec. 4.1)", {"kl_vs_samples": kl_table, "components": comp_table})
     rep.summary = {
-        "settings": asdict(s) | {"shapes": list(ctx["shapes"])},
+        "settings": asdict(s) | {"shapes": list(ctx.shapes), "library": s.library.dict()},
         "kl_incremental_mean": inc.mean(axis=0).tolist(),
         "kl_em_mean": em.mean(axis=0).tolist(),
         "fraction_orders_true_K": float(np.mean(final == n_shapes)),

@@ -1,65 +1,222 @@
-"""Save and load a SkillLibrary: one ``.npz`` file, no pickle.
+"""Save and load a library's :class:`~drake_skills.library.state.LibraryState`: one ``.npz`` file, no pickle.
 
-Layout (schema version 2; version 1 lacked ``config.resample_tolerance``,
-which reads as 0, the arc length of version 1):
+``SkillLibrary.save`` writes ``lib.state()`` with :func:`save_state`;
+``SkillLibrary.load`` is ``SkillLibrary.from_state(load_state(path))``. This module
+knows the state type and the file format only, never the library class.
+
+Layout (schema version 3):
 
 * ``metadata``: a 0-d unicode array holding JSON: ``{"format": "drake-skills
-  library", "schema_version": 2, "config": {...}, "dim_human": ...,
-  "dim_robot": ..., "next_id": ..., "n_seen": ..., "components": [{"id", "age",
-  "support", "duration"}, ...], "history": [...]}``;
-* ``means``: (K, d) and ``covs``: (K, d, d), in the order of ``components``.
+  library", "schema_version": 3, "config": {...}, "dim_human", "dim_robot",
+  "next_id", "n_seen", "history": [...], "trained_with_workspace": true, false or
+  null (optional: files written before it are read as null, unknown), "scale": {"n", "dof"}, "components":
+  [{"id", "age", "support", "duration", "path_length", "rank", "subclusters":
+  [{"support", "duration", "path_length", "rank"}, null or {...}]}, ...]}``;
+* ``means`` (K, d); ``factors`` (d, R): the components' scatter factors side by side
+  (``rank`` columns each, in order); ``sub_means`` (K, 2, d) and ``sub_factors`` (d,
+  R') the same for the sub-clusters (zeros for an empty one);
+* ``total_mean`` (d,), ``total_m2`` (d,), ``pooled`` (d, d): the shared scale.
 
-Writes go to a temporary file in the same directory, then ``os.replace``, so a
-crash never leaves a half-written library.  Loading uses
-``allow_pickle=False`` and checks the format tag, the schema version, shapes,
-finiteness and symmetry/positive definiteness, and names the file in every
-error.
+The scatter is stored as factors (a few columns per demonstration), so a library of
+1000 components of 3 demonstrations each and 150 weights takes ~7 MB, where dense
+covariances would take 180 MB.
+
+Files of schema 1 and 2 (dense covariances, the fixed ``Sigma_init`` scale) still
+load: their settings of the retired fixed scale are dropped, each component's
+covariance becomes its scatter (``s_k C_k``), and the shared scale is estimated from
+the stored components (a warning says so).
+
+Writes go to a temporary file in the same directory, then ``os.replace``, so a crash
+never leaves a half-written library. Loading uses ``allow_pickle=False``, reads every
+array's header first and checks that the file holds the bytes it declares and that its
+shape is the one the metadata says, before reading any array (a crafted file cannot
+make it allocate more than its own size, and the metadata is bounded), checks
+finiteness and consistency, and names the file in every error.
 """
 from __future__ import annotations
 
 import json
+import logging
 import zipfile
 from pathlib import Path
 
 import numpy as np
 
 from drake_skills._io import atomic_write
+from drake_skills.library.config import RETIRED_FIELDS, LibraryConfig
+from drake_skills.library.scale import Cluster, SharedScale
+from drake_skills.library.state import ComponentState, LibraryState
+
+log = logging.getLogger(__name__)
 
 FORMAT = "drake-skills library"
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
+#: Largest metadata entry read (characters): ~ 10^5 components' bookkeeping.
+MAX_METADATA_CHARS = 64 * 2 ** 20
+#: Largest number of weights per demonstration a file may declare.
+MAX_WEIGHTS = 10_000
+#: Largest ratio of an array's bytes to its compressed bytes accepted from a compressed
+#: entry (``save`` stores arrays uncompressed; numbers rarely compress beyond a few times).
+MAX_EXPANSION = 64
 
 
-def save_library(lib, path) -> Path:
-    """Atomically write ``lib`` to ``path`` (``.npz`` is appended if missing)."""
-    from drake_skills.library.incremental import SkillLibrary
+def _cluster_meta(cl: Cluster) -> dict:
+    return {"support": cl.support, "duration": cl.duration, "path_length": cl.path_length,
+            "rank": int(cl.factor.shape[1])}
 
-    if not isinstance(lib, SkillLibrary):
-        raise ValueError(f"save_library takes a SkillLibrary, got {type(lib).__name__}")
+
+def save_state(state: LibraryState, path) -> Path:
+    """Atomically write ``state`` to ``path`` (``.npz`` is appended if missing); returns the path written."""
+    if not isinstance(state, LibraryState):
+        raise ValueError(f"save_state takes a LibraryState, got {type(state).__name__}")
     path = Path(path)
     if path.suffix != ".npz":
         path = path.with_name(path.name + ".npz")
-    comps = lib._components
+    comps = state.components
+    d = state.n_weights
+    sc = state.scale if state.scale is not None else SharedScale.empty(d)
     meta = {
         "format": FORMAT,
         "schema_version": SCHEMA_VERSION,
-        "config": lib.config.dict(),
-        "dim_human": lib.dim_human_,
-        "dim_robot": lib.dim_robot_,
-        "next_id": lib._next_id,
-        "n_seen": lib._n_seen,
-        "components": [{"id": c.id, "age": c.age, "support": c.support, "duration": c.duration} for c in comps],
-        "history": lib._history,
+        "config": state.config.dict(),
+        "dim_human": state.dim_human,
+        "dim_robot": state.dim_robot,
+        "next_id": state.next_id,
+        "n_seen": state.n_seen,
+        "history": list(state.history),
+        "trained_with_workspace": state.trained_with_workspace,
+        "scale": {"n": int(sc.n), "dof": float(sc.dof), "fit_m2": float(sc.fit_m2)},
+        "components": [dict(id=c.id, age=c.age, **_cluster_meta(c.cluster),
+                            subclusters=[None if s is None else _cluster_meta(s) for s in c.subclusters])
+                       for c in comps],
     }
-    d = comps[0].mean.shape[0] if comps else 0
-    means = np.stack([c.mean for c in comps]) if comps else np.zeros((0, d))
-    covs = np.stack([c.cov for c in comps]) if comps else np.zeros((0, d, d))
-    atomic_write(path, lambda f: np.savez(f, metadata=np.array(json.dumps(meta)), means=means, covs=covs),
-                 fsync=True)
+    sub_means = np.zeros((len(comps), 2, d))
+    sub_factors = []
+    for k, c in enumerate(comps):
+        for j, s in enumerate(c.subclusters):
+            if s is not None:
+                sub_means[k, j] = s.mean
+                sub_factors.append(s.factor)
+    arrays = {
+        "metadata": np.array(json.dumps(meta)),
+        "means": np.stack([c.mean for c in comps]) if comps else np.zeros((0, d)),
+        "factors": np.concatenate([c.cluster.factor for c in comps], axis=1) if comps else np.zeros((d, 0)),
+        "sub_means": sub_means,
+        "sub_factors": np.concatenate(sub_factors, axis=1) if sub_factors else np.zeros((d, 0)),
+        "total_mean": np.asarray(sc.total_mean, float),
+        "total_m2": np.asarray(sc.total_m2, float),
+        "pooled": np.asarray(sc.pooled, float),
+    }
+    atomic_write(path, lambda f: np.savez(f, **arrays), fsync=True)
     return path
 
 
-def load_library(path):
-    """Read a library written by :func:`save_library`.
+def _headers(z: zipfile.ZipFile, where: str, file_bytes: int) -> dict:
+    """Shape and dtype of every array of an .npz, read from the headers only.
+
+    Also checks that every entry holds the bytes its header declares, and that those
+    bytes are in the file (stored) or at most :data:`MAX_EXPANSION` times the
+    compressed bytes that are: a crafted header cannot make loading allocate memory
+    the file does not back.
+    """
+    out = {}
+    for info in z.infolist():
+        name = info.filename[:-4] if info.filename.endswith(".npy") else info.filename
+        with z.open(info) as f:
+            try:
+                version = np.lib.format.read_magic(f)
+                read = np.lib.format.read_array_header_1_0 if version == (1, 0) else \
+                    np.lib.format.read_array_header_2_0
+                shape, fortran, dtype = read(f)
+            except ValueError as exc:
+                raise ValueError(f"{where}: entry {name!r} is not a numpy array ({exc})") from None
+            header_bytes = f.tell()
+        if dtype.hasobject:
+            raise ValueError(f"{where}: entry {name!r} holds Python objects; library files hold only numbers "
+                             f"and text (refusing to unpickle)")
+        need = int(np.prod(shape, dtype=object)) * dtype.itemsize
+        backed = info.compress_size * (1 if info.compress_type == zipfile.ZIP_STORED else MAX_EXPANSION)
+        if info.file_size < header_bytes + need or need > backed or \
+                info.header_offset + info.compress_size > file_bytes:
+            raise ValueError(f"{where}: entry {name!r} declares {tuple(shape)} {dtype} ({need} bytes) but the file "
+                             f"holds {info.compress_size} bytes for it (truncated or crafted)")
+        out[name] = (tuple(shape), dtype)
+    return out
+
+
+def _read(path: Path, where: str):
+    """The JSON metadata, the schema version and an accessor for the arrays of a library file."""
+    if not path.exists():
+        raise FileNotFoundError(f"{where} does not exist")
+    if not zipfile.is_zipfile(path):
+        raise ValueError(f"{where} is truncated or not an .npz file")
+    try:
+        with zipfile.ZipFile(path) as z:
+            headers = _headers(z, where, path.stat().st_size)
+        if "metadata" not in headers:
+            raise ValueError(f"{where} is not a drake-skills library (missing ['metadata'])")
+        shape, dtype = headers["metadata"]
+        if dtype.kind != "U" or shape != ():
+            raise ValueError(f"{where}: metadata entry is not a JSON string")
+        if dtype.itemsize // 4 > MAX_METADATA_CHARS:
+            raise ValueError(f"{where}: metadata entry of {dtype.itemsize // 4} characters is larger than "
+                             f"{MAX_METADATA_CHARS}")
+        with np.load(path, allow_pickle=False) as z:
+            meta_raw = z["metadata"]
+    except ValueError as exc:
+        if str(exc).startswith(where):
+            raise
+        raise ValueError(f"{where} cannot be read as .npz without pickle ({exc})") from None
+    except (zipfile.BadZipFile, OSError, EOFError, KeyError) as exc:
+        raise ValueError(f"{where} is truncated or not an .npz file ({type(exc).__name__}: {exc})") from None
+    try:
+        meta = json.loads(str(meta_raw))
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{where}: metadata is not valid JSON ({exc})") from None
+    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+        raise ValueError(f"{where} is not a drake-skills library (format tag "
+                         f"{meta.get('format') if isinstance(meta, dict) else None!r})")
+    version = meta.get("schema_version")
+    if not isinstance(version, int) or isinstance(version, bool):
+        raise ValueError(f"{where}: schema_version missing or not an integer")
+    if version > SCHEMA_VERSION:
+        raise ValueError(f"{where} has schema version {version}, newer than this drake-skills "
+                         f"supports ({SCHEMA_VERSION}): upgrade drake-skills")
+    if version < 1:
+        raise ValueError(f"{where}: schema_version {version} is not a version of this format")
+
+    def arrays(expected: dict) -> dict:
+        """Read the arrays named in ``expected`` (name -> shape), each checked before it is read."""
+        missing = sorted(set(expected) - set(headers))
+        if missing:
+            raise ValueError(f"{where} is not a drake-skills library (missing {missing})")
+        for name, want in expected.items():
+            shape, dtype = headers[name]
+            if shape != tuple(want):
+                raise ValueError(f"{where}: array {name!r} has shape {shape}, the metadata says {tuple(want)}")
+            if dtype.kind not in "fiu":
+                raise ValueError(f"{where}: array {name!r} is not numeric ({dtype})")
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                out = {name: np.array(z[name], dtype=float) for name in expected}
+        except (zipfile.BadZipFile, OSError, EOFError, KeyError, ValueError) as exc:
+            raise ValueError(f"{where} is truncated or damaged ({type(exc).__name__}: {exc})") from None
+        for name, a in out.items():
+            if not np.isfinite(a).all():
+                raise ValueError(f"{where}: array {name!r} contains NaN or inf")
+        return out
+
+    return meta, version, arrays
+
+
+def _int(x, what: str, lo: int = 0) -> int:
+    if isinstance(x, bool) or not isinstance(x, int) or x < lo:
+        raise ValueError(f"{what} must be an integer >= {lo}, got {x!r}")
+    return x
+
+
+def load_state(path) -> LibraryState:
+    """Read the state written by :func:`save_state` (or by a version that wrote schema 1 or 2).
 
     Raises
     ------
@@ -69,94 +226,121 @@ def load_library(path):
         If the file is truncated, not a drake-skills library, of a newer schema
         version, or inconsistent; the message names the file.
     """
-    from drake_skills.library.incremental import LibraryConfig, SkillLibrary, _State
-
     path = Path(path)
     where = f"library file '{path}'"
-    if not path.exists():
-        raise FileNotFoundError(f"{where} does not exist")
-    if not zipfile.is_zipfile(path):
-        raise ValueError(f"{where} is truncated or not an .npz file")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            names = set(z.files)
-            missing = {"metadata", "means", "covs"} - names
-            if missing:
-                raise ValueError(f"{where} is not a drake-skills library (missing {sorted(missing)})")
-            meta_raw = z["metadata"]
-            means = np.array(z["means"], dtype=float)
-            covs = np.array(z["covs"], dtype=float)
-    except ValueError as exc:
-        if str(exc).startswith(where):
-            raise
-        raise ValueError(f"{where} cannot be read as .npz without pickle ({exc})") from None
-    except (zipfile.BadZipFile, OSError, EOFError, KeyError) as exc:
-        raise ValueError(f"{where} is truncated or not an .npz file ({type(exc).__name__}: {exc})") from None
-    if meta_raw.dtype.kind != "U" or meta_raw.shape != ():
-        raise ValueError(f"{where}: metadata entry is not a JSON string")
-    try:
-        meta = json.loads(str(meta_raw))
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{where}: metadata is not valid JSON ({exc})") from None
-    if not isinstance(meta, dict) or meta.get("format") != FORMAT:
-        raise ValueError(f"{where} is not a drake-skills library (format tag {meta.get('format') if isinstance(meta, dict) else None!r})")
-    version = meta.get("schema_version")
-    if not isinstance(version, int):
-        raise ValueError(f"{where}: schema_version missing or not an integer")
-    if version > SCHEMA_VERSION:
-        raise ValueError(f"{where} has schema version {version}, newer than this drake-skills "
-                         f"supports ({SCHEMA_VERSION}): upgrade drake-skills")
+    meta, version, arrays = _read(path, where)
     try:
         cfg_meta = dict(meta["config"])
         if version < 2:  # written before the arc length ignored noise below a tolerance
             cfg_meta.setdefault("resample_tolerance", 0.0)
+        if version < 3:  # the fixed Sigma_init scale; the file's representation settings stay
+            for name in RETIRED_FIELDS:
+                cfg_meta.pop(name, None)
+            cfg_meta.setdefault("ridge", 1e-6)
+            cfg_meta.setdefault("n_basis_human", 10)
         config = LibraryConfig.from_dict(cfg_meta)
-        comps_meta = meta["components"]
-        if not isinstance(comps_meta, list):
-            raise TypeError(f"components must be a list, got {type(comps_meta).__name__}")
+        comps_meta = list(meta["components"])
         dim_h, dim_r = meta["dim_human"], meta["dim_robot"]
-        next_id, n_seen, history = int(meta["next_id"]), int(meta["n_seen"]), list(meta["history"])
+        dims = (None, None) if dim_h is None and dim_r is None else (_int(dim_h, "dim_human", 1),
+                                                                      _int(dim_r, "dim_robot", 0))
+        next_id, n_seen = _int(meta["next_id"], "next_id"), _int(meta["n_seen"], "n_seen")
+        history = tuple(meta["history"])
+        if not all(isinstance(e, dict) for e in history):
+            raise ValueError("history entries must be objects")
+        with_ws = meta.get("trained_with_workspace")  # optional key: schema 3 without it reads as unknown
+        if with_ws is not None and not isinstance(with_ws, bool):
+            raise ValueError(f"trained_with_workspace must be true, false or null, got {with_ws!r}")
     except (KeyError, TypeError, ValueError) as exc:
         raise ValueError(f"{where}: bad metadata ({type(exc).__name__}: {exc})") from None
     K = len(comps_meta)
-    lib = SkillLibrary(config)
-    if K == 0:
-        lib.dim_human_, lib.dim_robot_ = dim_h, dim_r
-        lib._next_id, lib._n_seen, lib._history = next_id, n_seen, history
-        return lib
-    if dim_h is None or dim_r is None:
-        raise ValueError(f"{where}: components but no dimensions")
-    h = int(dim_h) * config.n_basis_human
-    d = h + int(dim_r) * config.n_basis_robot
-    if means.shape != (K, d) or covs.shape != (K, d, d):
-        raise ValueError(f"{where}: arrays have shapes {means.shape}, {covs.shape}; metadata says "
-                         f"{K} components of dimension {d}")
-    if not (np.isfinite(means).all() and np.isfinite(covs).all()):
-        raise ValueError(f"{where}: means or covariances contain NaN or inf")
-    states = []
-    ids = set()
-    for i, cm in enumerate(comps_meta):
+    if dims[0] is None:
+        if K:
+            raise ValueError(f"{where}: components but no dimensions")
         try:
-            cid, age, support, duration = int(cm["id"]), int(cm["age"]), float(cm["support"]), float(cm["duration"])
-        except (KeyError, TypeError, ValueError) as exc:
-            raise ValueError(f"{where}: component {i} metadata is bad ({exc})") from None
-        if cid in ids or cid >= next_id or cid < 0:
-            raise ValueError(f"{where}: component id {cid} is duplicated or out of range")
-        if not (support > 0 and age >= 0 and np.isfinite(duration)):
-            raise ValueError(f"{where}: component {cid} has support {support}, age {age}, duration {duration}")
-        ids.add(cid)
-        S = covs[i]
-        if not np.allclose(S, S.T, rtol=1e-9, atol=1e-12):
-            raise ValueError(f"{where}: covariance of component {cid} is not symmetric")
-        try:
-            chol = lib._chol_gating(S, h)
-            np.linalg.cholesky(S + 1e-12 * np.trace(S) / d * np.eye(d))
-        except (ValueError, np.linalg.LinAlgError):
-            raise ValueError(f"{where}: covariance of component {cid} is not positive definite") from None
-        states.append(_State(cid, age, support, means[i].copy(), S.copy(), duration, chol))
-    lib._components = states
-    lib._history = history
-    lib._next_id = next_id
-    lib._n_seen = n_seen
-    lib.dim_human_, lib.dim_robot_ = int(dim_h), int(dim_r)
-    return lib
+            return LibraryState(config, None, None, next_id, n_seen, (), history, None, with_ws)
+        except ValueError as exc:
+            raise ValueError(f"{where}: {exc}") from None
+    d = dims[0] * config.n_basis_human + dims[1] * config.n_basis_robot
+    if d > MAX_WEIGHTS:
+        raise ValueError(f"{where}: metadata declares {d} weights per demonstration (more than {MAX_WEIGHTS})")
+    if version < 3:
+        return _load_dense(where, config, dims, next_id, n_seen, history, comps_meta, arrays, d)
+    try:
+        ranks = [_int(c["rank"], f"component {i} rank") for i, c in enumerate(comps_meta)]
+        sub_ranks = [_int(s["rank"], f"component {i} sub-cluster rank")
+                     for i, c in enumerate(comps_meta) for s in c["subclusters"] if s is not None]
+        scale_meta = meta["scale"]
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f"{where}: bad component metadata ({type(exc).__name__}: {exc})") from None
+    if any(r > d for r in ranks + sub_ranks):
+        raise ValueError(f"{where}: a scatter factor of rank above {d} (the number of weights)")
+    a = arrays({"means": (K, d), "factors": (d, sum(ranks)), "sub_means": (K, 2, d),
+                "sub_factors": (d, sum(sub_ranks)), "total_mean": (d,), "total_m2": (d,), "pooled": (d, d)})
+    comps = []
+    col = sub_col = 0
+    try:
+        for i, cm in enumerate(comps_meta):
+            f = a["factors"][:, col:col + ranks[i]]
+            col += ranks[i]
+            cluster = Cluster(float(cm["support"]), a["means"][i], f, float(cm["duration"]), float(cm["path_length"]))
+            subs = []
+            if not isinstance(cm["subclusters"], list) or len(cm["subclusters"]) != 2:
+                raise ValueError(f"component {i} needs two sub-cluster entries")
+            for j, sm in enumerate(cm["subclusters"]):
+                if sm is None:
+                    subs.append(None)
+                    continue
+                r = int(sm["rank"])
+                sf = a["sub_factors"][:, sub_col:sub_col + r]
+                sub_col += r
+                subs.append(Cluster(float(sm["support"]), a["sub_means"][i, j], sf, float(sm["duration"]),
+                                    float(sm["path_length"])))
+            comps.append(ComponentState(_int(cm["id"], f"component {i} id"), _int(cm["age"], f"component {i} age"),
+                                        cluster, tuple(subs)))
+        scale = SharedScale(_int(scale_meta["n"], "scale n"), a["total_mean"], a["total_m2"], a["pooled"],
+                            float(scale_meta["dof"]), float(scale_meta.get("fit_m2", 0.0)))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f"{where}: component metadata is bad ({type(exc).__name__}: {exc})") from None
+    if not np.allclose(scale.pooled, scale.pooled.T, rtol=1e-9, atol=1e-12):
+        raise ValueError(f"{where}: the pooled scatter is not symmetric")
+    try:
+        return LibraryState(config, dims[0], dims[1], next_id, n_seen, tuple(comps), history, scale, with_ws)
+    except ValueError as exc:
+        raise ValueError(f"{where}: {exc}") from None
+
+
+def _load_dense(where, config, dims, next_id, n_seen, history, comps_meta, arrays, d) -> LibraryState:
+    """A schema 1-2 file: dense covariances of the fixed-scale library."""
+    K = len(comps_meta)
+    a = arrays({"means": (K, d), "covs": (K, d, d)})
+    comps, supports = [], []
+    try:
+        for i, cm in enumerate(comps_meta):
+            s, cov = float(cm["support"]), a["covs"][i]
+            if not np.allclose(cov, cov.T, rtol=1e-9, atol=1e-12):
+                raise ValueError(f"covariance of component {cm.get('id', i)} is not symmetric")
+            w, V = np.linalg.eigh(0.5 * (cov + cov.T))
+            if w.min() < -1e-9 * max(1.0, abs(w).max()):
+                raise ValueError(f"covariance of component {cm.get('id', i)} is not positive definite")
+            factor = V * np.sqrt(np.clip(w, 0.0, None) * s)
+            cl = Cluster(s, a["means"][i], factor, float(cm["duration"]), 0.0)
+            comps.append(ComponentState(_int(cm["id"], f"component {i} id"), max(1, _int(cm["age"], "age")),
+                                        cl, (cl, None)))
+            supports.append(s)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f"{where}: {exc}") from None
+    if comps:
+        s = np.array(supports)
+        means = a["means"]
+        mean = s @ means / s.sum()
+        var = s @ (np.stack([np.diag(c) for c in a["covs"]]) + (means - mean) ** 2)
+        pooled = sum(c.cluster.scatter for c in comps)
+        scale = SharedScale(max(n_seen, 1), mean, var, 0.5 * (pooled + pooled.T), float(np.sum(s - 1.0)))
+    else:
+        scale = SharedScale.empty(d)
+    log.warning("%s has schema version < 3 (fixed Sigma_init scale): its shared scale is estimated from the "
+                "stored components, and phase estimates need new demonstrations (no path lengths stored)", where)
+    try:
+        return LibraryState(config, dims[0], dims[1], next_id, n_seen, tuple(comps), history, scale)
+    except ValueError as exc:
+        raise ValueError(f"{where}: {exc}") from None

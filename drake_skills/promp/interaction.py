@@ -96,6 +96,49 @@ def observation_log_likelihood(mean_h, cov_hh, Phi_o, y_obs, noise_var: float):
     return float(loglik), float(d2), int(m)
 
 
+def prefix_statistics(mean_h, cov_hh, Phi_o, y_obs, noise_var: float):
+    """Marginal likelihood of observed human samples, and a chi-square statistic of their fit.
+
+    Under ``vec(y) ~ N(H^T mu_h, sigma^2 I + H^T Sigma_hh H)``:
+
+    * ``loglik``: the marginal log-likelihood of all the samples (as
+      :func:`observation_log_likelihood`);
+    * ``d2``: the squared Mahalanobis distance of the samples' projection onto the
+      basis, ``(u^T G^+ u - u^T S A^{-1} u) / sigma^2`` with ``u = H r``, ``G = H H^T``,
+      ``A = sigma^2 I + G S``: the part of the misfit the weights could explain. The
+      residual orthogonal to the basis (fit and sensor noise, whose samples are far from
+      independent) is left out, so the statistic is calibrated like the whole-motion
+      test on the weights, for any number of samples;
+    * ``dof``: the effective number of weight directions the samples observe,
+      ``tr(G S A^{-1}) = h - sigma^2 tr(A^{-1})`` (``h`` for a whole motion, fewer for
+      a short prefix, whose later basis functions see no samples); ``d2`` is
+      chi-square with about ``dof`` degrees of freedom under the model.
+
+    Returns
+    -------
+    loglik : float
+    d2 : float
+    dof : float
+    """
+    G, u, r, A = _observation_terms(mean_h, cov_hh, Phi_o, y_obs, noise_var)
+    m = r.size
+    h = G.shape[0]
+    Ainv = np.linalg.inv(A)
+    a = Ainv @ u
+    explained = u @ cov_hh @ a
+    d2_obs = (np.sum(r * r) - explained) / noise_var
+    sign, logdet = np.linalg.slogdet(np.eye(h) + cov_hh @ G / noise_var)
+    loglik = -0.5 * (m * (_LOG_2PI + np.log(noise_var)) + logdet + d2_obs)
+    D = y_obs.shape[1]
+    PtP = Phi_o.T @ Phi_o
+    Pinv = np.linalg.pinv(PtP, rcond=1e-10, hermitian=True)
+    U = u.reshape(D, -1)
+    span = float(np.einsum("di,ij,dj->", U, Pinv, U))
+    d2 = max((span - explained) / noise_var, 0.0)
+    dof = float(h - noise_var * np.trace(Ainv))
+    return float(loglik), float(d2), max(dof, 1e-9)
+
+
 class InteractionProMP:
     """A Gaussian over stacked human and robot ProMP weights ``[w_h; w_r]``.
 

@@ -1,34 +1,30 @@
-"""``SimConfig``: the YAML schema of the simulated collaboration (diagram, decision, meshcat, trials)."""
+"""``SimConfig``: the one config tree of a run, read from YAML with Drake's ``yaml_load_typed``.
+
+::
+
+    SimConfig              the simulated collaboration (this module)
+      library: LibraryConfig   the skill library (drake_skills.library.config)
+      decision: DecisionRule   when the gating decides (drake_skills.systems.decision_rule)
+      controller, meshcat      gains and drawing
+      lcm: LcmConfig           channels, rates and the simulated bus (drake_skills.sim.lcm_config)
+
+Every node is a dataclass that is its own schema (a comment on every field) and
+validates itself in ``__post_init__``. :func:`load_config` reads a file in either of
+two forms: a ``SimConfig`` document (library settings under ``library:``), or a
+document of ``LibraryConfig`` fields alone (the rest keeps its defaults).
+"""
 # No "from __future__ import annotations": yaml_load_typed reads the real field types.
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Optional
+from typing import Optional, Union
 
-from pydrake.common.yaml import yaml_load_typed
+from pydrake.common.yaml import yaml_load, yaml_load_typed
 
-from drake_skills.systems.gating import DecisionRule
-
-
-@dataclass
-class DecisionConfig:
-    """When the gating decides (normalized workspace units, Eq. 14: the workspace spans [0, 10])."""
-
-    # the wrist must first move this far from its start
-    min_travel: float = 1.0
-    # ... then stay within still_radius of its last position for this long (s)
-    still_duration: float = 0.4
-    # radius of "still"
-    still_radius: float = 0.05
-    # decide this long after the trial start whatever the wrist does (s); null: when it stops
-    decision_time: Optional[float] = None
-    # decide at the latest this long after the trial start (s)
-    timeout: float = 10.0
-
-    def rule(self) -> DecisionRule:
-        """The gating's :class:`DecisionRule`."""
-        return DecisionRule(self.min_travel, self.still_duration, self.still_radius, self.decision_time,
-                            self.timeout)
+from drake_skills._checks import validated
+from drake_skills.library.config import LibraryConfig
+from drake_skills.sim.lcm_config import LcmConfig
+from drake_skills.systems.decision_rule import DecisionRule
 
 
 @dataclass
@@ -53,22 +49,24 @@ class MeshcatConfig:
     frames_per_second: float = 32.0
     # radius of the sphere drawn at the person's wrist (m)
     wrist_radius: float = 0.035
-    # camera position, metres (world): behind and left of the seated person
-    camera_position: list[float] = field(default_factory=lambda: [-1.9, -1.7, 1.9])
-    # point the camera looks at, metres (world): above the table centre
-    camera_target: list[float] = field(default_factory=lambda: [0.0, 0.1, 0.9])
+    # camera position, metres (world): behind and right of the seated person, framing the table
+    camera_position: list[float] = field(default_factory=lambda: [-1.45, -1.05, 1.55])
+    # point the camera looks at, metres (world): above the table, between the person and the robot
+    camera_target: list[float] = field(default_factory=lambda: [-0.2, 0.15, 0.9])
 
 
 @dataclass
 class SimConfig:
-    """Everything the simulated collaboration needs beyond the library and the subject."""
+    """Everything a simulated collaboration needs beyond the subject's data."""
 
     # random seed (trial order, subject generation)
     seed: int = 0
     # time step of the discrete MultibodyPlant (s)
     time_step: float = 1e-3
+    # the skill library the robot starts with (empty) and teaches
+    library: LibraryConfig = field(default_factory=LibraryConfig)
     # when the gating decides
-    decision: DecisionConfig = field(default_factory=DecisionConfig)
+    decision: DecisionRule = field(default_factory=DecisionRule)
     # inverse-dynamics controller gains
     controller: ControllerConfig = field(default_factory=ControllerConfig)
     # meshcat drawing and recording
@@ -85,14 +83,21 @@ class SimConfig:
     log_period: float = 1.0 / 32.0
     # number of trials of the demo
     trials: int = 20
-    # 1-based index of the simulated subject (drake_skills.data.salad)
+    # 1-based index of the simulated subject (drake_skills.scenario.salad)
     subject: int = 1
     # demonstrations generated per task for the subject (the trial pool)
     demos_per_task: int = 15
     # shrink factor of the calibrated workspace along z (Sec. 4.2.2)
     z_factor: float = 0.9
+    # the LCM interface (drake-skills demo --transport lcm, drake-skills control)
+    lcm: LcmConfig = field(default_factory=LcmConfig)
 
     def __post_init__(self):
+        for name, kind in (("library", LibraryConfig), ("decision", DecisionRule), ("controller", ControllerConfig),
+                           ("meshcat", MeshcatConfig), ("lcm", LcmConfig)):
+            if not isinstance(getattr(self, name), kind):
+                raise ValueError(f"SimConfig.{name} must be a {kind.__name__}, "
+                                 f"got {type(getattr(self, name)).__name__}")
         for name in ("time_step", "settle_time", "log_period"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"SimConfig.{name} must be positive, got {getattr(self, name)!r}")
@@ -102,19 +107,49 @@ class SimConfig:
             raise ValueError(f"SimConfig.subject is a 1-based index, got {self.subject!r}")
         if self.trials < 1 or self.n_steps < 2 or self.demos_per_task < 1:
             raise ValueError("SimConfig: trials and demos_per_task must be >= 1 and n_steps >= 2")
+        if not 0 < self.z_factor <= 1:
+            raise ValueError(f"SimConfig.z_factor must be in (0, 1], got {self.z_factor!r}")
 
 
-def load_sim_config(path: str | Path | None = None, *, defaults: SimConfig | None = None) -> SimConfig:
-    """Read a :class:`SimConfig` from YAML (missing fields keep their defaults)."""
+def load_config(path: Union[str, Path, None] = None, *, defaults: Optional[SimConfig] = None) -> SimConfig:
+    """Read a :class:`SimConfig` from YAML; missing fields keep their defaults.
+
+    The document is either a ``SimConfig`` (library settings under ``library:``) or
+    ``LibraryConfig`` fields alone, which then become ``SimConfig.library``. Every
+    node is validated as if built in Python.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    ValueError
+        For an unknown field, a value of the wrong type or an invalid setting;
+        the message names the file.
+    """
     defaults = defaults if defaults is not None else SimConfig()
     if path is None:
-        return defaults
+        return validated(defaults)
     path = Path(path)
+    where = f"config '{path}'"
     if not path.is_file():
-        raise FileNotFoundError(f"simulation config '{path}' does not exist")
+        raise FileNotFoundError(f"{where} does not exist")
     try:
-        cfg = yaml_load_typed(schema=SimConfig, filename=str(path), defaults=defaults)
-    except RuntimeError as exc:
-        raise ValueError(f"simulation config '{path}': {exc}") from None
-    cfg.__post_init__()
-    return cfg
+        root = yaml_load(filename=str(path))
+        if not isinstance(root, dict):
+            raise ValueError(f"the document is a {type(root).__name__}, not a mapping of fields")
+        library_fields = {f.name for f in fields(LibraryConfig)}
+        if root and set(root) <= library_fields:
+            library = yaml_load_typed(schema=LibraryConfig, filename=str(path), defaults=defaults.library)
+            return validated(SimConfig(**{f.name: getattr(defaults, f.name) for f in fields(SimConfig)
+                                          if f.name != "library"}, library=library))
+        misplaced = sorted(set(root) & library_fields)
+        if misplaced:
+            raise ValueError(f"LibraryConfig fields {misplaced} must go under 'library:' next to SimConfig fields")
+        return validated(yaml_load_typed(schema=SimConfig, filename=str(path), defaults=defaults))
+    except (RuntimeError, ValueError, TypeError) as exc:
+        raise ValueError(f"{where}: {exc}") from None
+
+
+def load_library_config(path: Union[str, Path, None] = None) -> LibraryConfig:
+    """The :class:`LibraryConfig` of a ``--config`` file (either form of :func:`load_config`)."""
+    return load_config(path).library

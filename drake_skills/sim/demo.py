@@ -16,54 +16,100 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 from pydrake.geometry import Meshcat
 from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import Diagram
 
 from drake_skills.data.demonstration import Demonstration
 from drake_skills.library.incremental import SkillLibrary
 from drake_skills.library.labels import TaskVotes
-from drake_skills.promp.preprocessing import Workspace
+from drake_skills.data.workspace import Workspace
 from drake_skills.sim.config import SimConfig
 from drake_skills.sim.diagram import DiagramHandles, build_diagram
-from drake_skills.sim.models import FLANGE_FRAME, IIWA7_JOINT_LIMITS
-from drake_skills.systems.gating import UNKNOWN
+from drake_skills.sim.models import FLANGE_FRAME, IIWA7_JOINT_LIMITS, IIWA7_VELOCITY_LIMITS
 from drake_skills.systems.wrist_source import WristTrial
 
 log = logging.getLogger(__name__)
 
 #: Trials start on multiples of this (s), so the 1/64 s updates keep their phase.
 TRIAL_GRID = 1.0 / 64.0
+#: The person's motion counts as over once this share of its path is done (for the lead time).
+MOTION_DONE = 0.99
+
+
+@dataclass(frozen=True)
+class TrialOutcome:
+    """What the closed loop did in one trial (:meth:`CollaborationSim.run_trial`)."""
+
+    #: The skill executed at the end (the final decision), None if the robot did not act.
+    component: int | None
+    #: The final answer: "skill", "unknown" or "undecided".
+    status: str
+    #: Simulation time of the final decision, relative to the trial start (s); NaN if none.
+    decision_time: float
+    #: Simulation time span of the trial (s).
+    start_time: float
+    end_time: float
+    #: A conditioned trajectory was executed to the end.
+    executed: bool
+    #: Simulation time at which the robot's response started (the first commit; NaN if none).
+    plan_start: float
+    #: The skills the gating committed to, in order (the last is executed unless given up).
+    commits: tuple = ()
+    #: How often the committed skill was changed or given up.
+    revisions: int = 0
+    #: The gating's re-decisions (:class:`~drake_skills.systems.gating.Belief`), for plots.
+    beliefs: tuple = ()
 
 
 @dataclass
 class TrialResult:
-    """What happened in one trial."""
+    """What happened in one trial (``trial`` counts from 1, as the console does)."""
 
-    #: 0-based index in the stream.
+    #: 1-based index in the stream.
     trial: int
     #: The task performed (the demonstration's label; the library never sees it).
     task: str
-    #: Component id chosen by the gating, or -1 for unknown.
-    component: int
-    #: "skill <id>" or "unknown".
+    #: Component id executed, or None (JSON null) when the robot did not act.
+    component: int | None
+    #: The final answer: "skill", "unknown" or "undecided".
+    status: str
+    #: "skill <id>", "unknown" or "undecided".
     decision: str
-    #: The label the chosen component was taught with (None for unknown).
+    #: The label the executed component was taught with (None when the robot did not act).
     recognized_task: str | None
     #: Had this task been taught before the trial?
     task_known: bool
-    #: Unknown for a new task, or the right skill for a known one.
+    #: "right" (the right skill executed, or no action for an untaught task), "wrong" (another task's
+    #: skill executed) or "asked" (no action for a taught task: unknown or undecided).
+    outcome: str
+    #: outcome == "right".
     correct: bool
     #: The demonstration was folded into the library after the trial.
     taught: bool
     #: Distance between the simulated flange at the end and the flange of the
-    #: demonstration's final configuration (cm); NaN when the robot did not move.
+    #: demonstration's final configuration (cm); NaN when the robot did not act.
     flange_error_cm: float
-    #: RMS joint tracking error (rad) over the executed motion; NaN when unknown.
+    #: RMS joint tracking error (rad) over the executed motion; NaN when the robot did not act.
     tracking_rms_rad: float
     #: Largest joint displacement from the trial's start pose (rad).
     max_displacement_rad: float
     #: All logged joint positions were inside the joint limits.
     within_limits: bool
-    #: Simulation time of the decision, relative to the trial start (s).
+    #: Largest joint speed of the command over the joint's velocity limit (<= 1: within).
+    peak_speed_ratio: float
+    #: Simulation time of the final decision, relative to the trial start (s).
     decision_delay: float
+    #: Share of the person's path observed when the robot committed (NaN if it never did).
+    decision_fraction: float
+    #: Seconds from the robot starting its response to the person's motion ending (positive: before).
+    lead_s: float
+    #: Skills committed during the trial (labels), in order.
+    commits: list
+    #: A skill of another task was committed at some point (revised or not).
+    wrong_commit: bool
+    #: Probability of the best candidate at the final answer (0 when nothing explained the motion).
+    confidence: float
+    #: How often the committed skill was changed or given up.
+    revisions: int
     #: Simulation time span of the trial (s).
     start_time: float
     end_time: float
@@ -76,26 +122,40 @@ class TrialLog:
     times: np.ndarray
     q: np.ndarray
     q_desired: np.ndarray
+    qd_desired: np.ndarray = field(default_factory=lambda: np.zeros((0, 7)))
 
 
 @dataclass
 class DemoSummary:
-    """Figures of a whole run."""
+    """Figures of a whole run (``results`` holds one :class:`TrialResult` per trial)."""
 
     trials: int
-    #: Trials whose task had been taught before, and how many of them were recognized correctly.
+    #: Trials whose task had been taught before, and the share of them answered with the right skill.
     known_trials: int
     accuracy_after_teaching: float
-    #: Trials answered "unknown" (and taught).
-    unknown: int
-    #: Trials that executed the skill of another task (for an untaught task too).
+    #: Trials per outcome over the whole run: right / wrong skill executed / asked (unknown or undecided).
+    right: int
     wrong: int
+    asked: int
+    #: Trials whose final answer was "unknown", and "undecided" (the robot held; the demo was taught).
+    unknown: int
+    undecided_at_rest: int
+    #: Trials in which a wrong skill was committed at some point (then revised, or executed: see wrong).
+    wrong_commits: int
+    #: Trials in which the committed skill was changed or given up.
+    revised: int
+    #: Mean share of the person's path observed when the robot committed.
+    mean_decision_fraction: float
+    #: Mean seconds from the robot starting its response to the person's motion ending (positive: before).
+    mean_lead_s: float
     #: Flange error at handover over the trials that executed the right skill (cm).
     mean_flange_error_cm: float
     max_flange_error_cm: float
     mean_tracking_rms_rad: float
     components: int
     within_limits: bool
+    #: Largest commanded joint speed over its limit, over the run (<= 1: within).
+    peak_speed_ratio: float
     simulated_seconds: float
     wall_seconds: float = float("nan")
     results: list = field(default_factory=list)
@@ -119,6 +179,25 @@ def _jsonable(x):
     return x
 
 
+def path_progress(demo: Demonstration, workspace: Workspace, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+    """The demonstration's share of its path done over time, as the library measures paths.
+
+    Returns
+    -------
+    t : array, shape (M,)
+        Times of the path's vertices, relative to the demonstration's start (s).
+    share : array, shape (M,)
+        Arc length done by then over the whole path length (0 to 1, non-decreasing).
+    """
+    from drake_skills.promp.preprocessing import vertex_indices
+
+    y = workspace.normalize(demo.human, subtract_start=False)
+    idx = vertex_indices(y, tolerance)
+    v = y[idx]
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(v, axis=0), axis=1))])
+    return demo.t[idx] - demo.t[0], s / max(s[-1], 1e-12)
+
+
 class CollaborationSim:
     """One Diagram and Simulator that run any number of trials against a (growing) library.
 
@@ -137,7 +216,7 @@ class CollaborationSim:
         self.config = config
         self.library = library
         self.workspace = workspace
-        self.diagram, self.handles = build_diagram(config, library=library, workspace=workspace, meshcat=meshcat)
+        self.diagram, self.handles = self._build(meshcat)
         self.simulator = Simulator(self.diagram)
         self.context = self.simulator.get_mutable_context()
         h: DiagramHandles = self.handles
@@ -146,6 +225,18 @@ class CollaborationSim:
         self._fk_flange = h.controller_plant.GetFrameByName(FLANGE_FRAME)
         self._votes = TaskVotes()
         self.time = 0.0
+
+    def _build(self, meshcat: Meshcat | None) -> tuple[Diagram, DiagramHandles]:
+        """The Diagram and its handles (the LCM transport overrides this)."""
+        return build_diagram(self.config, library=self.library, workspace=self.workspace, meshcat=meshcat)
+
+    def _start_trial(self, demo: Demonstration, t0: float) -> None:
+        """Reset the whole Diagram to a new trial of ``demo`` at time ``t0`` and initialize."""
+        h, ctx = self.handles, self.context
+        self.diagram.SetDefaultContext(ctx)
+        ctx.SetTime(t0)
+        h.wrist_source.SetTrial(h.wrist_source.GetMyContextFromRoot(ctx), WristTrial(demo.t, demo.human, t0))
+        self.simulator.Initialize()
 
     # ------------------------------------------------------------ helpers
     def flange_position(self, q: np.ndarray) -> np.ndarray:
@@ -167,59 +258,51 @@ class CollaborationSim:
         return self._votes.label_of(component)
 
     # ------------------------------------------------------------- trials
-    def run_trial(self, demo: Demonstration) -> tuple[dict, TrialLog]:
+    def run_trial(self, demo: Demonstration) -> tuple[TrialOutcome, TrialLog]:
         """Replay ``demo``'s wrist and let the closed loop answer it.
 
-        Returns
-        -------
-        outcome : dict
-            component, decision_time, start_time, end_time, the final q.
-        log : TrialLog
+        The simulation advances in steps of ``config.log_period`` (joints logged
+        at each) until the Diagram's ``trial_status`` says the trial is over, or
+        at the latest the demonstration's duration plus the decision timeout plus
+        the hold time.
         """
         cfg = self.config
         h = self.handles
         ctx = self.context
         t0 = math.ceil(self.time / TRIAL_GRID) * TRIAL_GRID
-        self.diagram.SetDefaultContext(ctx)
-        ctx.SetTime(t0)
-        h.wrist_source.SetTrial(h.wrist_source.GetMyContextFromRoot(ctx), WristTrial(demo.t, demo.human, t0))
-        self.simulator.Initialize()
-        gating_ctx = h.gating.GetMyContextFromRoot(ctx)
-        cond_ctx = h.conditioner.GetMyContextFromRoot(ctx)
+        self._start_trial(demo, t0)
+        status_port = h.trial_monitor.GetOutputPort("trial_status")
+        monitor_ctx = h.trial_monitor.GetMyContextFromRoot(ctx)
         source_port = h.trajectory_source.GetOutputPort("desired_state")
         source_ctx = h.trajectory_source.GetMyContextFromRoot(ctx)
-        deadline = t0 + demo.duration + cfg.decision.timeout + cfg.unknown_hold_time
-        times, qs, qds = [t0], [self.joint_positions()], [source_port.Eval(source_ctx)[:7].copy()]
+        deadline = t0 + demo.duration + cfg.decision.timeout + cfg.unknown_hold_time + cfg.settle_time
+        desired = source_port.Eval(source_ctx)
+        times, qs, qds, vds = [t0], [self.joint_positions()], [desired[:7].copy()], [desired[7:].copy()]
         t = t0
-        end_set = False
+        end_known = False
         while t < deadline - 1e-12:
             t = min(t + cfg.log_period, deadline)
             self.simulator.AdvanceTo(t)
+            desired = source_port.Eval(source_ctx)
             times.append(t)
             qs.append(self.joint_positions())
-            qds.append(source_port.Eval(source_ctx)[:7].copy())
-            if end_set:
-                continue
-            decision = h.gating.decision(gating_ctx)
-            if not decision.decided:
-                continue
-            if decision.component == UNKNOWN:
-                deadline, end_set = decision.time + cfg.unknown_hold_time, True
-                continue
-            traj = h.conditioner.trajectory(cond_ctx)
-            if traj is not None:
-                deadline, end_set = traj.end_time + cfg.settle_time, True
-            elif h.conditioner.GetOutputPort("robot_trajectory").Eval(cond_ctx) is None and t > decision.time + 0.1:
-                deadline, end_set = decision.time + cfg.unknown_hold_time, True  # conditioning failed
-        decision = h.gating.decision(gating_ctx)
+            qds.append(desired[:7].copy())
+            vds.append(desired[7:].copy())
+            if not end_known:
+                end = status_port.Eval(monitor_ctx).end_time
+                if end is not None:
+                    deadline, end_known = max(end, t), True
         self.time = t
-        outcome = dict(component=int(decision.component) if decision.decided else UNKNOWN,
-                       decision_time=float(decision.time) - t0 if decision.decided else float("nan"),
-                       start_time=t0, end_time=t,
-                       executed=h.conditioner.trajectory(cond_ctx) is not None,
-                       plan_start=(h.conditioner.trajectory(cond_ctx).start_time
-                                   if h.conditioner.trajectory(cond_ctx) is not None else float("nan")))
-        return outcome, TrialLog(np.array(times), np.array(qs), np.array(qds))
+        decision = h.gating.decision(h.gating.GetMyContextFromRoot(ctx))
+        traj = h.conditioner.trajectory(h.conditioner.GetMyContextFromRoot(ctx))
+        executed = decision.final and decision.component is not None and traj is not None
+        outcome = TrialOutcome(component=decision.component if executed else None,
+                               status=decision.status if decision.final else "unknown",
+                               decision_time=float(decision.time) - t0 if decision.final else float("nan"),
+                               start_time=t0, end_time=t, executed=executed,
+                               plan_start=float(decision.commit_time), commits=tuple(decision.commits),
+                               revisions=int(decision.revisions), beliefs=tuple(decision.beliefs))
+        return outcome, TrialLog(np.array(times), np.array(qs), np.array(qds), np.array(vds))
 
     def teach(self, demo: Demonstration) -> None:
         """Fold ``demo`` into the library (Algorithm 1) and keep the task labels of the components."""
@@ -228,27 +311,45 @@ class CollaborationSim:
         log.info("taught %s: created %s updated %s merged %s deleted %s (K=%d)", demo.task, update.created,
                  update.updated, update.merged, update.deleted, self.library.n_components)
 
-    def evaluate_trial(self, index: int, demo: Demonstration, outcome: dict, trial_log: TrialLog,
+    def evaluate_trial(self, index: int, demo: Demonstration, outcome: TrialOutcome, trial_log: TrialLog,
                        task_known: bool) -> TrialResult:
-        """Score one trial (before any teaching)."""
+        """Score one trial (before any teaching); ``index`` counts from 0, the result's ``trial`` from 1."""
         lower, upper = IIWA7_JOINT_LIMITS
-        k = outcome["component"]
+        k = outcome.component
         q = trial_log.q
         displacement = float(np.max(np.abs(q - q[0]))) if len(q) else 0.0
         within = bool(((q >= lower - 1e-6) & (q <= upper + 1e-6)).all())
-        recognized_task = self.label_of(k) if k >= 0 else None
-        correct = (k == UNKNOWN) if not task_known else (recognized_task == demo.task)
+        speed = float(np.max(np.abs(trial_log.qd_desired) / IIWA7_VELOCITY_LIMITS)) if trial_log.qd_desired.size \
+            else 0.0
+        recognized_task = self.label_of(k) if k is not None else None
+        if k is None:
+            result = "right" if not task_known else "asked"
+        else:
+            result = "right" if recognized_task == demo.task else "wrong"
         flange_error = tracking = float("nan")
-        if outcome["executed"] and demo.robot is not None:
+        if outcome.executed and demo.robot is not None:
             p_sim = self.simulated_flange_position()
             p_demo = self.flange_position(demo.robot[-1])
             flange_error = 100.0 * float(np.linalg.norm(p_sim - p_demo))
-            mask = trial_log.times >= outcome["plan_start"]
+            mask = trial_log.times >= outcome.plan_start
             err = trial_log.q[mask] - trial_log.q_desired[mask]
             tracking = float(np.sqrt(np.mean(err ** 2))) if err.size else float("nan")
-        return TrialResult(index, str(demo.task), k, "unknown" if k < 0 else f"skill {k}", recognized_task,
-                           task_known, bool(correct), False, flange_error, tracking, displacement, within,
-                           outcome["decision_time"], outcome["start_time"], outcome["end_time"])
+        fraction = lead = float("nan")
+        if math.isfinite(outcome.plan_start):
+            tp, share = path_progress(demo, self.workspace, self.library.config.resample_tolerance)
+            t_commit = outcome.plan_start - outcome.start_time
+            fraction = float(np.interp(t_commit, tp, share))
+            t_done = float(tp[np.searchsorted(share, MOTION_DONE)])
+            lead = t_done - t_commit
+        labels = [self.label_of(c) for c in outcome.commits]
+        wrong_commit = any(lab != demo.task for lab in labels)
+        decision = "unknown" if outcome.status == "unknown" else (
+            "undecided" if outcome.status == "undecided" or k is None else f"skill {k}")
+        confidence = float(outcome.beliefs[-1].confidence) if outcome.beliefs else 0.0
+        return TrialResult(index + 1, str(demo.task), k, outcome.status, decision, recognized_task, task_known,
+                           result, result == "right", False, flange_error, tracking, displacement, within, speed,
+                           outcome.decision_time, fraction, lead, labels, bool(wrong_commit), confidence,
+                           outcome.revisions, outcome.start_time, outcome.end_time)
 
 
 def trial_stream(demos: list[Demonstration], n_trials: int, rng: np.random.Generator) -> list[Demonstration]:
@@ -273,7 +374,7 @@ def trial_stream(demos: list[Demonstration], n_trials: int, rng: np.random.Gener
 
 def run_collaboration(config: SimConfig, demos: list[Demonstration], workspace: Workspace, *,
                       library: SkillLibrary | None = None, meshcat: Meshcat | None = None,
-                      on_trial=None) -> tuple[DemoSummary, SkillLibrary]:
+                      on_trial=None, make_sim=None) -> tuple[DemoSummary, SkillLibrary]:
     """Run the stream of trials of the paper's Fig. 2 against an (initially empty) library.
 
     Parameters
@@ -284,11 +385,16 @@ def run_collaboration(config: SimConfig, demos: list[Demonstration], workspace: 
         The subject's demonstrations (with ``task`` labels and robot trajectories).
     workspace : Workspace
     library : SkillLibrary, optional
-        Default: a new, empty one.
+        Default: a new, empty one with ``config.library``.
     meshcat : Meshcat, optional
         If given, the whole run is recorded into its animation (the caller publishes it).
     on_trial : callable, optional
-        Called with each :class:`TrialResult` as it is done (progress output).
+        Called with each :class:`TrialResult` and its :class:`TrialOutcome` as it is done
+        (progress output, plots).
+    make_sim : callable, optional
+        ``make_sim(config, library, workspace, meshcat)`` -> a :class:`CollaborationSim`;
+        default the class itself (the direct Diagram), e.g.
+        :class:`~drake_skills.sim.lcm_demo.LcmCollaborationSim` for the LCM transport.
 
     Returns
     -------
@@ -297,10 +403,10 @@ def run_collaboration(config: SimConfig, demos: list[Demonstration], workspace: 
     """
     import time as _time
 
-    library = library if library is not None else SkillLibrary()
+    library = library if library is not None else SkillLibrary(config.library)
     rng = np.random.default_rng(config.seed)
     stream = trial_stream(demos, config.trials, rng)
-    sim = CollaborationSim(config, library, workspace, meshcat)
+    sim = (make_sim or CollaborationSim)(config, library, workspace, meshcat)
     if meshcat is not None:
         meshcat.StartRecording(config.meshcat.frames_per_second, False)
     taught_tasks: set[str] = set()
@@ -309,28 +415,40 @@ def run_collaboration(config: SimConfig, demos: list[Demonstration], workspace: 
     for i, demo in enumerate(stream):
         outcome, trial_log = sim.run_trial(demo)
         result = sim.evaluate_trial(i, demo, outcome, trial_log, demo.task in taught_tasks)
-        if result.component == UNKNOWN:
+        if result.component is None:  # unknown or undecided: the robot asked, the person shows it
             sim.teach(demo)
             taught_tasks.add(str(demo.task))
             result.taught = True
         results.append(result)
         if on_trial is not None:
-            on_trial(result)
+            on_trial(result, outcome)
     wall = _time.perf_counter() - wall0
     if meshcat is not None:
         meshcat.StopRecording()
+        rec = meshcat.get_mutable_recording()
+        rec.set_autoplay(True)  # the page plays the run once and stays at its end
+        rec.set_loop_mode(rec.LoopMode.kLoopOnce)
+        rec.set_clamp_when_finished(True)
         meshcat.PublishRecording()
     known = [r for r in results if r.task_known]
     flange = np.array([r.flange_error_cm for r in results if r.correct and math.isfinite(r.flange_error_cm)])
     rms = np.array([r.tracking_rms_rad for r in results if math.isfinite(r.tracking_rms_rad)])
+    fractions = [r.decision_fraction for r in results if r.component is not None and math.isfinite(r.decision_fraction)]
+    leads = [r.lead_s for r in results if r.component is not None and math.isfinite(r.lead_s)]
     summary = DemoSummary(
         trials=len(results), known_trials=len(known),
         accuracy_after_teaching=float(np.mean([r.correct for r in known])) if known else float("nan"),
-        unknown=sum(r.component == UNKNOWN for r in results),
-        wrong=sum(r.component != UNKNOWN and not r.correct for r in results),
+        right=sum(r.outcome == "right" for r in results), wrong=sum(r.outcome == "wrong" for r in results),
+        asked=sum(r.outcome == "asked" for r in results),
+        unknown=sum(r.status == "unknown" for r in results),
+        undecided_at_rest=sum(r.status == "undecided" for r in results),
+        wrong_commits=sum(r.wrong_commit for r in results), revised=sum(r.revisions > 0 for r in results),
+        mean_decision_fraction=float(np.mean(fractions)) if fractions else float("nan"),
+        mean_lead_s=float(np.mean(leads)) if leads else float("nan"),
         mean_flange_error_cm=float(flange.mean()) if flange.size else float("nan"),
         max_flange_error_cm=float(flange.max()) if flange.size else float("nan"),
         mean_tracking_rms_rad=float(rms.mean()) if rms.size else float("nan"),
         components=library.n_components, within_limits=all(r.within_limits for r in results),
+        peak_speed_ratio=max((r.peak_speed_ratio for r in results), default=0.0),
         simulated_seconds=float(sim.time), wall_seconds=wall, results=[asdict(r) for r in results])
     return summary, library

@@ -3,20 +3,28 @@
 ::
 
     HumanWristSource ─▶ WorkspaceNormalizer ─▶ SkillGating ─▶ InteractionProMPConditioner
-                                                                     │ robot_trajectory
-    plant state ─▶ JointTrajectorySource ◀───────────────────────────┘
+                                                  │ decision           │ robot_trajectory, conditioning
+                                                  └─▶ TrialMonitor ◀───┤  (trial_status: phase, end time)
+    plant state ─▶ JointTrajectorySource ◀─────────────────────────────┘
                         │ desired state, acceleration
                         ▼
                InverseDynamicsController ─▶ MultibodyPlant (IIWA7 + scene) ─▶ MeshcatVisualizer
                   (own iiwa-only plant)
 
+The wrist is normalized once (Eq. 14, in the normalizer, as the library's config
+asks); the gating and the conditioner hand the normalized samples to the library,
+which only resamples them. The decision travels as a
+:class:`~drake_skills.systems.gating.GatingDecision` (the component id an int), and
+the end of a trial is the ``trial_status`` output of the
+:class:`~drake_skills.systems.trial_monitor.TrialMonitor`.
+
 The person is never a body of the plant: the wrist is drawn in meshcat by
 :class:`~drake_skills.sim.wrist_marker.WristMarker`.  This module is the only
-place that calls ``Connect``.
+place that calls ``Connect`` for the direct Diagram; the controller's own wiring is
+:func:`drake_skills.sim.controller.add_controller`, shared with the LCM controller.
 """
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,22 +33,21 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, MultibodyPlant
 from pydrake.multibody.tree import BodyIndex, Frame, ModelInstanceIndex
 from pydrake.systems.controllers import InverseDynamicsController
-from pydrake.systems.framework import Diagram, DiagramBuilder
+from pydrake.systems.framework import Diagram, DiagramBuilder, OutputPort
 from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
 
 from drake_skills.library.incremental import SkillLibrary
-from drake_skills.promp.preprocessing import Workspace
+from drake_skills.data.workspace import Workspace
 from drake_skills.sim.config import SimConfig
-from drake_skills.sim.models import (FLANGE_FRAME, HOME_Q, IIWA7_JOINT_LIMITS, add_salad_scene, load_scene_config,
-                                     make_iiwa7_plant)
+from drake_skills.sim.controller import add_controller
+from drake_skills.sim.models import FLANGE_FRAME, HOME_Q, SceneConfig, add_salad_scene, load_scene_config
 from drake_skills.sim.wrist_marker import WristMarker
 from drake_skills.systems.conditioner import InteractionProMPConditioner
 from drake_skills.systems.gating import SkillGating
 from drake_skills.systems.normalizer import WorkspaceNormalizer
 from drake_skills.systems.trajectory_source import JointTrajectorySource
+from drake_skills.systems.trial_monitor import TrialMonitor
 from drake_skills.systems.wrist_source import HumanWristSource
-
-log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -61,6 +68,7 @@ class DiagramHandles:
     gating: SkillGating
     conditioner: InteractionProMPConditioner
     trajectory_source: JointTrajectorySource
+    trial_monitor: TrialMonitor
     visualizer: MeshcatVisualizer | None = None
     wrist_marker: WristMarker | None = None
     meshcat: Meshcat | None = None
@@ -93,6 +101,44 @@ def _filter_robot_contact(plant: MultibodyPlant, scene_graph: SceneGraph, iiwa: 
     scene_graph.collision_filter_manager().Apply(declaration)
 
 
+def add_salad_plant(builder: DiagramBuilder, config: SimConfig) -> tuple[MultibodyPlant, SceneGraph,
+                                                                          ModelInstanceIndex, SceneConfig]:
+    """Add the discrete MultibodyPlant with the IIWA7 (at ``HOME_Q``) in the salad scene.
+
+    Returns
+    -------
+    plant, scene_graph, iiwa, scene
+        ``scene`` is the :class:`~drake_skills.sim.models.SceneConfig` it was built from.
+    """
+    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=config.time_step)
+    scene = load_scene_config()
+    models = add_salad_scene(plant, Parser(plant), scene)
+    iiwa = models["iiwa"]
+    plant.Finalize()
+    plant.SetDefaultPositions(iiwa, HOME_Q)
+    _filter_robot_contact(plant, scene_graph, iiwa, with_scene=config.robot_scene_contact)
+    return plant, scene_graph, iiwa, scene
+
+
+def add_visualization(builder: DiagramBuilder, config: SimConfig, scene_graph: SceneGraph, meshcat: Meshcat,
+                      scene: SceneConfig, *, wrist: OutputPort, decision: OutputPort
+                      ) -> tuple[MeshcatVisualizer, WristMarker]:
+    """Draw the scene, the wrist (from ``wrist``, p_WH) and the decision colour (from ``decision``) in meshcat."""
+    params = MeshcatVisualizerParams()
+    params.publish_period = config.meshcat.publish_period
+    params.role = Role.kIllustration
+    params.delete_on_initialization_event = False  # one diagram, many trials, one recording
+    visualizer = MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat, params)
+    meshcat.SetCameraPose(np.asarray(config.meshcat.camera_position, float),
+                          np.asarray(config.meshcat.camera_target, float))
+    marker = builder.AddSystem(WristMarker(meshcat, config.meshcat.publish_period, config.meshcat.wrist_radius,
+                                           p_WL=scene.robot_base.transform().translation() + [0, 0.25, 0.75]))
+    marker.set_name("wrist_marker")
+    builder.Connect(wrist, marker.GetInputPort("human_wrist"))
+    builder.Connect(decision, marker.GetInputPort("decision"))
+    return visualizer, marker
+
+
 def build_diagram(config: SimConfig, *, library: SkillLibrary, workspace: Workspace,
                   meshcat: Meshcat | None = None) -> tuple[Diagram, DiagramHandles]:
     """Build the closed loop: replayed wrist -> skill library -> controller -> IIWA7 plant.
@@ -113,62 +159,22 @@ def build_diagram(config: SimConfig, *, library: SkillLibrary, workspace: Worksp
     handles : DiagramHandles
     """
     builder = DiagramBuilder()
-    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=config.time_step)
-    scene = load_scene_config()
-    models = add_salad_scene(plant, Parser(plant), scene)
-    iiwa = models["iiwa"]
-    plant.Finalize()
-    plant.SetDefaultPositions(iiwa, HOME_Q)
-    _filter_robot_contact(plant, scene_graph, iiwa, with_scene=config.robot_scene_contact)
-
-    controller_plant = make_iiwa7_plant(scene.robot_base.transform())
-    n = controller_plant.num_positions()
-    gains = config.controller
-    controller = builder.AddSystem(InverseDynamicsController(
-        controller_plant, kp=np.full(n, gains.kp), ki=np.full(n, gains.ki), kd=np.full(n, gains.kd),
-        has_reference_acceleration=True))
-    controller.set_name("inverse_dynamics_controller")
-
-    lower, upper = IIWA7_JOINT_LIMITS
+    plant, scene_graph, iiwa, scene = add_salad_plant(builder, config)
     wrist = builder.AddSystem(HumanWristSource())
-    normalizer = builder.AddSystem(WorkspaceNormalizer(workspace))
-    gating = builder.AddSystem(SkillGating(library, config.decision.rule(), dim=workspace.dim,
-                                           scale=workspace.scale))
-    conditioner = builder.AddSystem(InteractionProMPConditioner(library, n_steps=config.n_steps,
-                                                                scale=workspace.scale))
-    source = builder.AddSystem(JointTrajectorySource(lower, upper, HOME_Q))
-    for system, name in ((wrist, "human_wrist_source"), (normalizer, "workspace_normalizer"), (gating, "skill_gating"),
-                         (conditioner, "interaction_promp_conditioner"), (source, "joint_trajectory_source")):
-        system.set_name(name)
-
-    builder.Connect(wrist.GetOutputPort("human_wrist"), normalizer.GetInputPort("human_wrist"))
-    builder.Connect(normalizer.GetOutputPort("normalized_wrist"), gating.GetInputPort("normalized_wrist"))
-    builder.Connect(gating.GetOutputPort("component"), conditioner.GetInputPort("component"))
-    builder.Connect(gating.GetOutputPort("observed_motion"), conditioner.GetInputPort("observed_motion"))
-    builder.Connect(conditioner.GetOutputPort("robot_trajectory"), source.GetInputPort("robot_trajectory"))
-    builder.Connect(plant.get_state_output_port(iiwa), source.GetInputPort("measured_state"))
-    builder.Connect(source.GetOutputPort("desired_state"), controller.get_input_port_desired_state())
-    builder.Connect(source.GetOutputPort("desired_acceleration"), controller.get_input_port_desired_acceleration())
-    builder.Connect(plant.get_state_output_port(iiwa), controller.get_input_port_estimated_state())
-    builder.Connect(controller.get_output_port_control(), plant.get_actuation_input_port(iiwa))
+    wrist.set_name("human_wrist_source")
+    ctrl = add_controller(builder, config, library=library, workspace=workspace, X_WB=scene.robot_base.transform())
+    ctrl.connect_wrist(builder, wrist.GetOutputPort("human_wrist"))
+    ctrl.connect_measured_state(builder, plant.get_state_output_port(iiwa))
+    builder.Connect(ctrl.actuation, plant.get_actuation_input_port(iiwa))
 
     visualizer = marker = None
     if meshcat is not None:
-        params = MeshcatVisualizerParams()
-        params.publish_period = config.meshcat.publish_period
-        params.role = Role.kIllustration
-        params.delete_on_initialization_event = False  # one diagram, many trials, one recording
-        visualizer = MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat, params)
-        meshcat.SetCameraPose(np.asarray(config.meshcat.camera_position, float),
-                              np.asarray(config.meshcat.camera_target, float))
-        marker = builder.AddSystem(WristMarker(meshcat, config.meshcat.publish_period, config.meshcat.wrist_radius,
-                                               p_WL=scene.robot_base.transform().translation() + [0, 0.25, 0.75]))
-        marker.set_name("wrist_marker")
-        builder.Connect(wrist.GetOutputPort("human_wrist"), marker.GetInputPort("human_wrist"))
-        builder.Connect(gating.GetOutputPort("component"), marker.GetInputPort("component"))
+        visualizer, marker = add_visualization(builder, config, scene_graph, meshcat, scene,
+                                               wrist=wrist.GetOutputPort("human_wrist"), decision=ctrl.decision)
 
     diagram = builder.Build()
     diagram.set_name("drake_skills_collaboration")
-    handles = DiagramHandles(plant, scene_graph, iiwa, plant.GetFrameByName(FLANGE_FRAME, iiwa), controller_plant,
-                             controller, wrist, normalizer, gating, conditioner, source, visualizer, marker, meshcat)
+    handles = DiagramHandles(plant, scene_graph, iiwa, plant.GetFrameByName(FLANGE_FRAME, iiwa),
+                             ctrl.controller_plant, ctrl.controller, wrist, ctrl.normalizer, ctrl.gating,
+                             ctrl.conditioner, ctrl.trajectory_source, ctrl.trial_monitor, visualizer, marker, meshcat)
     return diagram, handles

@@ -10,7 +10,6 @@ robot base (``iiwa_link_0``), E the flange (``iiwa_link_ee``), O an object.
 """
 # No "from __future__ import annotations": yaml_load_typed reads the real field types.
 
-import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -20,8 +19,6 @@ from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import ModelInstanceIndex
-
-log = logging.getLogger(__name__)
 
 #: Name of the package declared by ``models/package.xml``.
 PACKAGE_NAME = "drake_skills_models"
@@ -256,3 +253,29 @@ def make_iiwa7_plant(X_WB: RigidTransform | None = None, *, time_step: float = 0
     add_iiwa7(plant, Parser(plant), X_WB)
     plant.Finalize()
     return plant
+
+
+class FlangeKinematics:
+    """Forward kinematics of the IIWA7 flange, ``p_WE`` (3,) at joints ``q`` (7,), on its own plant.
+
+    Parameters
+    ----------
+    X_WB : RigidTransform, optional
+        Base pose; default the robot base of ``scene.yaml``.
+
+    A copy sent to another process (pickled) builds its own plant there.
+    """
+
+    def __init__(self, X_WB: RigidTransform | None = None):
+        self._X_WB = X_WB
+        self._plant = make_iiwa7_plant(X_WB)
+        self._context = self._plant.CreateDefaultContext()
+        self._frame = self._plant.GetFrameByName(FLANGE_FRAME)
+
+    def __call__(self, q) -> np.ndarray:
+        self._plant.SetPositions(self._context, np.asarray(q, float))
+        return np.array(self._plant.CalcRelativeTransform(self._context, self._plant.world_frame(),
+                                                          self._frame).translation())
+
+    def __reduce__(self):
+        return (FlangeKinematics, (self._X_WB,))

@@ -6,10 +6,12 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.common.value import AbstractValue
+
+from drake_skills.systems.shared import Shared
 from pydrake.systems.framework import Context, LeafSystem, State
 
 from drake_skills.library.incremental import SkillLibrary
-from drake_skills.systems.gating import GATING_PERIOD, ObservedMotion, identity_workspace
+from drake_skills.systems.gating import GATING_PERIOD, GatingDecision, ObservedMotion
 
 log = logging.getLogger(__name__)
 
@@ -18,7 +20,7 @@ CONDITIONER_PERIOD = GATING_PERIOD
 
 
 @dataclass(frozen=True, eq=False)
-class ConditionedTrajectory:
+class ConditionedTrajectory(Shared):
     """A robot joint trajectory conditioned on the observed human motion.
 
     Attributes
@@ -40,19 +42,58 @@ class ConditionedTrajectory:
     std: np.ndarray
     duration: float
     start_time: float
+    #: 0 for the first conditioning of a decision, +1 for each re-conditioning on a longer prefix.
+    revision: int = 0
+    #: Estimated fraction of the person's motion observed when it was conditioned.
+    phase: float = 1.0
 
     @property
     def end_time(self) -> float:
         return self.start_time + self.duration
 
     @property
-    def key(self) -> tuple[int, float]:
-        """Identifies the decision it answers (abstract values are deep-copied, so not ``id``)."""
-        return (self.component, self.start_time)
+    def key(self) -> tuple[int, float, int]:
+        """Identifies what it answers (abstract values are deep-copied, so not ``id``)."""
+        return (self.component, self.start_time, self.revision)
+
+
+#: Seconds between two re-conditionings on the growing prefix while the person moves.
+RECONDITION_PERIOD = 0.125
+
+
+@dataclass(frozen=True, eq=False)
+class Conditioning(Shared):
+    """The conditioner's state and its second output: what it did with this trial's decision.
+
+    Attributes
+    ----------
+    component : int or None
+        The component it conditioned (or tried to); None while nothing is committed.
+    trajectory : ConditionedTrajectory or None
+        The result; None before, after the gating gave the skill up, and after a failure
+        (e.g. the component was deleted between the decision and the conditioning): the
+        robot then holds.
+    final : bool
+        Conditioned on the whole motion after the final decision (no more updates).
+    samples : int
+        Number of wrist samples it was conditioned on.
+    time : float
+        When it was last conditioned (NaN before).
+    """
+
+    component: int | None = None
+    trajectory: ConditionedTrajectory | None = None
+    final: bool = False
+    samples: int = 0
+    time: float = float("nan")
+
+    @property
+    def failed(self) -> bool:
+        return self.component is not None and self.trajectory is None
 
 
 def condition_robot(library: SkillLibrary, component: int, motion: ObservedMotion, start_time: float, *,
-                    n_steps: int | None = None, scale: float = 10.0) -> ConditionedTrajectory:
+                    n_steps: int | None = None, whole: bool = True, revision: int = 0) -> ConditionedTrajectory:
     """Condition component ``component`` on the observed motion (Eq. 13).
 
     Parameters
@@ -60,20 +101,69 @@ def condition_robot(library: SkillLibrary, component: int, motion: ObservedMotio
     library : SkillLibrary
     component : int
     motion : ObservedMotion
-        Normalized samples relative to the start (Eq. 14 already applied).
+        Samples in the library's normalized units (Eq. 14 already applied).
     start_time : float
         When the robot starts (s).
     n_steps : int, optional
         Samples of the returned trajectory (default: the library's n_samples).
-    scale : float
-        The normalized range of the workspace.
+    whole : bool
+        The motion is complete; otherwise it is a prefix whose phase the library
+        estimates for this component.
+    revision : int
+
+    Raises
+    ------
+    KeyError
+        If ``component`` is not in the library.
     """
-    y = motion.samples
-    mean, cov = library.predict_robot(y, workspace=identity_workspace(y.shape[1], scale), component=int(component),
+    c = library.component(int(component))
+    if whole:
+        phase = 1.0
+    else:
+        phase = library.estimate_phase(motion.samples, int(component), normalized=True)
+    mean, cov = library.predict_robot(motion.samples, phase, normalized=True, component=int(component),
                                       n_steps=n_steps)
     std = np.sqrt(np.maximum(np.diagonal(cov, axis1=1, axis2=2), 0.0))
-    duration = float(library.component(int(component)).duration)
-    return ConditionedTrajectory(int(component), mean, std, duration, float(start_time))
+    return ConditionedTrajectory(int(component), mean, std, float(c.duration), float(start_time), int(revision),
+                                 float(phase))
+
+
+def conditioning_step(state: Conditioning, decision: GatingDecision, library: SkillLibrary, time: float, *,
+                      n_steps: int | None = None) -> Conditioning:
+    """Condition when the gating commits or switches, re-condition on the growing prefix, and once at the end.
+
+    * a new committed component: condition on the prefix, starting now;
+    * the same component, the person still moving: re-condition every
+      :data:`RECONDITION_PERIOD` on the longer prefix (same start, revision + 1);
+    * the final decision: condition on the whole motion once (``observed_fraction=1``);
+    * no committed component: no trajectory (the robot holds or stops).
+
+    A failure (bad input, a component deleted meanwhile) is logged and gives a
+    :class:`Conditioning` without trajectory, so the robot holds still.
+    """
+    if state.final:
+        return state
+    k = decision.component
+    if k is None:
+        if state.component is None and not decision.final:
+            return state
+        return Conditioning(None, None, decision.final, decision.motion.n, float(time))
+    k = int(k)
+    same = state.component == k and state.trajectory is not None
+    if same and not decision.final:
+        if decision.motion.n <= state.samples or time - state.time < RECONDITION_PERIOD - 1e-9:
+            return state
+    if state.component == k and state.trajectory is None and not decision.final:
+        return state  # it failed for this component: do not retry every tick
+    start = state.trajectory.start_time if same else float(time)
+    revision = state.trajectory.revision + 1 if same else 0
+    try:
+        traj = condition_robot(library, k, decision.motion, start, n_steps=n_steps, whole=decision.final,
+                               revision=revision)
+    except (KeyError, ValueError) as exc:
+        log.warning("cannot condition component %d: %s; the robot holds still", k, exc)
+        traj = None
+    return Conditioning(k, traj, decision.final, decision.motion.n, float(time))
 
 
 class InteractionProMPConditioner(LeafSystem):
@@ -83,15 +173,17 @@ class InteractionProMPConditioner(LeafSystem):
 
         name: InteractionProMPConditioner
         input_ports:
-        - component
-        - observed_motion
+        - decision
         output_ports:
         - robot_trajectory
+        - conditioning
 
+    ``decision`` is the gating's :class:`~drake_skills.systems.gating.GatingDecision`.
     ``robot_trajectory`` is a :class:`ConditionedTrajectory`, or None while
-    the decision is pending or unknown.  It is computed in an update (every
-    1/64 s while no trajectory is held) the first time ``component`` is a
-    valid id, cached in abstract state, and starts at that update's time.
+    nothing is committed (or conditioning failed). It is computed in an update
+    (every 1/64 s) when the gating commits or switches, recomputed on the growing
+    prefix and once more on the whole motion (:func:`conditioning_step`), and
+    cached in abstract state (:class:`Conditioning`, the ``conditioning`` output).
     A context reset starts a new trial.
 
     Parameters
@@ -99,45 +191,44 @@ class InteractionProMPConditioner(LeafSystem):
     library : SkillLibrary
     n_steps : int, optional
         Samples of the conditioned trajectory.
-    scale : float
-        The normalized range of the workspace (Eq. 14).
     """
 
-    def __init__(self, library: SkillLibrary, *, n_steps: int | None = None, scale: float = 10.0):
+    def __init__(self, library: SkillLibrary, *, n_steps: int | None = None):
         super().__init__()
         if not isinstance(library, SkillLibrary):
             raise ValueError(f"library must be a SkillLibrary, got {type(library).__name__}")
         self._library = library
         self._n_steps = n_steps
-        self._scale = float(scale)
-        self._component = self.DeclareVectorInputPort("component", 1)
-        self._motion = self.DeclareAbstractInputPort("observed_motion", AbstractValue.Make(ObservedMotion()))
-        # [trajectory or None, component it was made for or None]
-        self._state = self.DeclareAbstractState(AbstractValue.Make((None, None)))
+        self._decision = self.DeclareAbstractInputPort("decision", AbstractValue.Make(GatingDecision()))
+        self._state = self.DeclareAbstractState(AbstractValue.Make(Conditioning()))
         self.DeclarePeriodicUnrestrictedUpdateEvent(CONDITIONER_PERIOD, 0.0, self._update)
         self.DeclareForcedUnrestrictedUpdateEvent(self._update)
+        deps = {self.abstract_state_ticket(self._state)}
         self._out = self.DeclareAbstractOutputPort(
-            "robot_trajectory", lambda: AbstractValue.Make(None), self._calc_trajectory,
-            prerequisites_of_calc={self.abstract_state_ticket(self._state)})
+            "robot_trajectory", lambda: AbstractValue.Make(None), self._calc_trajectory, prerequisites_of_calc=deps)
+        self._conditioning = self.DeclareAbstractOutputPort(
+            "conditioning", lambda: AbstractValue.Make(Conditioning()), self._calc_conditioning,
+            prerequisites_of_calc=deps)
+
+    def conditioning(self, context: Context) -> Conditioning:
+        """The conditioner's state in ``context``."""
+        return context.get_abstract_state(self._state).get_value()
 
     def trajectory(self, context: Context) -> ConditionedTrajectory | None:
         """The cached trajectory in ``context``, or None."""
-        return context.get_abstract_state(self._state).get_value()[0]
+        return self.conditioning(context).trajectory
 
     def _update(self, context: Context, state: State) -> None:
-        _, done_for = context.get_abstract_state(self._state).get_value()
-        if done_for is not None:
-            return  # one decision per trial: computed once
-        k = int(round(self._component.Eval(context)[0]))
-        if k < 0:
+        old = self.conditioning(context)
+        if old.final:
             return
-        try:
-            traj = condition_robot(self._library, k, self._motion.Eval(context), context.get_time(),
-                                   n_steps=self._n_steps, scale=self._scale)
-        except (KeyError, ValueError) as exc:  # e.g. the component was deleted meanwhile
-            log.warning("cannot condition component %d: %s", k, exc)
-            traj = None
-        state.get_mutable_abstract_state(self._state).set_value((traj, k))
+        new = conditioning_step(old, self._decision.Eval(context), self._library, context.get_time(),
+                                n_steps=self._n_steps)
+        if new is not old:
+            state.get_mutable_abstract_state(self._state).set_value(new)
 
     def _calc_trajectory(self, context: Context, output: AbstractValue) -> None:
         output.set_value(self.trajectory(context))
+
+    def _calc_conditioning(self, context: Context, output: AbstractValue) -> None:
+        output.set_value(self.conditioning(context))

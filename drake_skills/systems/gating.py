@@ -2,56 +2,25 @@
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
+
+from drake_skills.systems.shared import Shared
+from pydrake.systems.framework import Context, LeafSystem, State
 
 from drake_skills.library.incremental import SkillLibrary
-from drake_skills.promp.preprocessing import Workspace
+from drake_skills.systems.decision_rule import DecisionRule
 
 log = logging.getLogger(__name__)
 
 #: Period of the sampling and decision update (s); exact in binary.
 GATING_PERIOD = 1.0 / 64.0
-#: Value of the "component" output while the motion is still being observed.
-PENDING = -2
-#: Value of the "component" output when the motion matches no skill.
-UNKNOWN = -1
-
-
-@dataclass(frozen=True)
-class DecisionRule:
-    """When is the person's motion over?
-
-    All distances are in normalized workspace units (Eq. 14: the workspace
-    spans [0, 10]), so one setting carries across subjects.
-    """
-
-    #: The wrist must first get this far from its start position.
-    min_travel: float = 1.0
-    #: ... and then stay within ``still_radius`` of its last position for this long (s).
-    still_duration: float = 0.4
-    #: Radius of "still".
-    still_radius: float = 0.05
-    #: Decide at this time after the first sample (s) whatever the motion does
-    #: (None: only when the motion is over).
-    decision_time: float | None = None
-    #: Decide at the latest this long after the first sample (s), motion over or not.
-    timeout: float = 10.0
-
-    def __post_init__(self):
-        for name in ("min_travel", "still_duration", "still_radius", "timeout"):
-            v = getattr(self, name)
-            if not np.isfinite(v) or v <= 0:
-                raise ValueError(f"DecisionRule.{name} must be positive, got {v!r}")
-        if self.decision_time is not None and not self.decision_time > 0:
-            raise ValueError(f"DecisionRule.decision_time must be positive or None, got {self.decision_time!r}")
 
 
 @dataclass(frozen=True, eq=False)
-class ObservedMotion:
+class ObservedMotion(Shared):
     """The wrist samples seen since the trial start.
 
     Attributes
@@ -72,36 +41,98 @@ class ObservedMotion:
     def append(self, time: float, sample: np.ndarray) -> "ObservedMotion":
         """A new motion with one more sample (this one is not modified)."""
         sample = np.asarray(sample, float).reshape(1, -1)
-        samples = sample if self.n == 0 else np.vstack([self.samples, sample])
-        return ObservedMotion(np.append(self.times, time), samples)
+        samples = sample.copy() if self.n == 0 else np.vstack([self.samples, sample])
+        times = np.append(self.times, time)
+        samples.setflags(write=False)  # shared between copies of the state (see Shared)
+        times.setflags(write=False)
+        return ObservedMotion(times, samples)
+
+
+@dataclass(frozen=True)
+class Belief(Shared):
+    """One re-decision: what the library said about the motion so far.
+
+    Attributes
+    ----------
+    time : float
+        Simulation time (s).
+    status : str
+        "skill", "undecided" or "unknown" (:class:`~drake_skills.library.views.Recognition`).
+    best : int or None
+        The most probable component among those that explain the motion.
+    confidence : float
+        Its posterior probability.
+    phase : float
+        Its estimated fraction observed (NaN when unknown).
+    posterior : tuple of (int, float)
+        (component id, p(k | motion)) for the components that explain the motion.
+    """
+
+    time: float
+    status: str
+    best: int | None
+    confidence: float
+    phase: float
+    posterior: tuple = ()
 
 
 @dataclass(frozen=True, eq=False)
-class GatingDecision:
-    """The gating's state: what was observed and, once decided, the decision.
+class GatingDecision(Shared):
+    """The gating's state and output: what was observed, what the robot acts on, and why.
 
     Attributes
     ----------
     motion : ObservedMotion
-    decided : bool
-    component : int
-        Component id, ``UNKNOWN`` (-1) or ``PENDING`` (-2).
-    responsibilities : dict
-        Component id -> p(k | w_h) (Eq. 5) at the decision; empty before.
+    component : int or None
+        The skill the robot executes now: set when the gating commits (the same skill
+        answered ``confirmations`` times in a row), changed when the answers switch to
+        another skill, None while nothing is committed or after giving up.
+    final : bool
+        The motion is over (or timed out) and the last answer is given.
+    status : str
+        "pending" while observing with nothing committed, "skill" while a skill is
+        committed, and at the end the final answer: "skill", "undecided" or "unknown".
     time : float
-        Simulation time of the decision (NaN before).
+        Simulation time the current ``component`` was set (commit or revision) or, when
+        final without a skill, of the final answer (NaN before).
+    commit_time : float
+        When the robot first committed in this trial (NaN if never).
+    revisions : int
+        How often the committed skill was changed or given up.
+    commits : tuple of int
+        The skills committed, in order.
+    beliefs : tuple of Belief
+        Every re-decision of the trial, in order (for plots and the recording).
+    responsibilities : dict
+        Component id -> p(k | w_h) (Eq. 5) at the last answer.
+    last_check : float
+        Time of the last re-decision (NaN before).
+    streak : tuple (answer, count)
+        The last answer (a component id, "unknown" or "undecided") and how often in a row.
     """
 
     motion: ObservedMotion = field(default_factory=ObservedMotion)
-    decided: bool = False
-    component: int = PENDING
-    responsibilities: dict = field(default_factory=dict)
+    component: int | None = None
+    final: bool = False
+    status: str = "pending"
     time: float = float("nan")
+    commit_time: float = float("nan")
+    revisions: int = 0
+    commits: tuple = ()
+    beliefs: tuple = ()
+    responsibilities: dict = field(default_factory=dict)
+    last_check: float = float("nan")
+    streak: tuple = (None, 0)
 
+    @property
+    def decided(self) -> bool:
+        """The final answer is given (the motion is over)."""
+        return self.final
 
-def identity_workspace(dim: int, scale: float = 10.0) -> Workspace:
-    """A workspace whose normalization is the identity (for already normalized samples)."""
-    return Workspace(np.zeros(dim), np.full(dim, float(scale)), float(scale))
+    @property
+    def belief(self) -> Belief | None:
+        """The last re-decision, or None."""
+        return self.beliefs[-1] if self.beliefs else None
 
 
 def motion_is_over(motion: ObservedMotion, rule: DecisionRule) -> bool:
@@ -116,7 +147,7 @@ def motion_is_over(motion: ObservedMotion, rule: DecisionRule) -> bool:
     if motion.n < 2:
         return False
     times, y = motion.times, motion.samples
-    if float(np.max(np.linalg.norm(y - y[0], axis=1))) < rule.min_travel:
+    if _travel(motion) < rule.min_travel:
         return False
     t_end = times[-1]
     if t_end - times[0] < rule.still_duration:
@@ -125,8 +156,13 @@ def motion_is_over(motion: ObservedMotion, rule: DecisionRule) -> bool:
     return bool(np.all(np.linalg.norm(window - y[-1], axis=1) <= rule.still_radius))
 
 
+def _travel(motion: ObservedMotion) -> float:
+    y = motion.samples
+    return float(np.max(np.linalg.norm(y - y[0], axis=1))) if motion.n else 0.0
+
+
 def should_decide(motion: ObservedMotion, rule: DecisionRule) -> bool:
-    """Decide now? At ``decision_time`` or ``timeout`` after the first sample, or when the motion is over."""
+    """Give the final answer now? At ``decision_time`` or ``timeout`` after the first sample, or when the motion is over."""
     if motion.n == 0:
         return False
     elapsed = motion.times[-1] - motion.times[0]
@@ -135,50 +171,104 @@ def should_decide(motion: ObservedMotion, rule: DecisionRule) -> bool:
     return elapsed >= rule.timeout - 1e-12 or motion_is_over(motion, rule)
 
 
-def recognize_motion(library: SkillLibrary, motion: ObservedMotion, scale: float = 10.0) -> tuple[int, dict]:
-    """Which component explains the motion (Eq. 12)?
+def should_redecide(state: GatingDecision, motion: ObservedMotion, time: float, rule: DecisionRule) -> bool:
+    """Re-decide from the prefix now? With anticipation, every ``redecide_period`` once the wrist has moved."""
+    if not rule.anticipate or state.final or motion.n < 2:
+        return False
+    if not np.isnan(state.last_check) and time - state.last_check < rule.redecide_period - 1e-9:
+        return False
+    return _travel(motion) >= rule.min_travel
+
+
+def recognize_motion(library: SkillLibrary, motion: ObservedMotion, *, whole: bool):
+    """The library's answer (a :class:`~drake_skills.library.views.Recognition`) for the motion so far.
 
     Parameters
     ----------
     library : SkillLibrary
         May be empty (then the answer is unknown).
     motion : ObservedMotion
-        Normalized samples relative to the start (Eq. 14 already applied).
-    scale : float
-        The normalized range of the workspace the samples were normalized with.
+        Samples in the library's normalized units (Eq. 14 applied by the normalizer):
+        the library only resamples them.
+    whole : bool
+        The motion is complete (its weights are tested, ``observed_fraction=1``);
+        otherwise it is a prefix whose phase the library estimates.
 
     Returns
     -------
-    component : int
-        Component id, or ``UNKNOWN``.
-    responsibilities : dict
-        Component id -> responsibility.
+    Recognition or None
+        None when there is nothing to recognize (empty library, no motion).
     """
-    if library.n_components == 0 or motion.n < 2:
-        return UNKNOWN, {}
-    y = motion.samples
-    if float(np.max(np.linalg.norm(y - y[0], axis=1))) <= 0.0:
-        return UNKNOWN, {}
-    rec = library.recognize(y, workspace=identity_workspace(y.shape[1], scale))
-    resp = {int(k): float(r) for k, r in zip(rec.ids, rec.responsibilities)}
-    return (UNKNOWN if rec.component is None else int(rec.component)), resp
+    if library.n_components == 0 or motion.n < 2 or _travel(motion) <= 0.0:
+        return None
+    return library.recognize(motion.samples, normalized=True, observed_fraction=1.0 if whole else None)
+
+
+def _belief(time: float, rec) -> Belief:
+    if rec is None:
+        return Belief(float(time), "unknown", None, 0.0, float("nan"))
+    post = tuple((int(k), float(p)) for k, p in zip(rec.ids, rec.posterior) if p > 0)
+    return Belief(float(time), rec.status, rec.best, rec.confidence, rec.phase, post)
+
+
+def _answer(b: Belief):
+    return b.best if b.status == "skill" else b.status
 
 
 def gating_step(state: GatingDecision, time: float, sample: np.ndarray, library: SkillLibrary,
-                rule: DecisionRule, scale: float = 10.0) -> GatingDecision:
-    """One update: record the sample and, when it is time, decide (once)."""
-    if state.decided:
+                rule: DecisionRule) -> GatingDecision:
+    """One update: record the sample, re-decide from the prefix when it is time, and answer finally at the end.
+
+    While the person moves (``rule.anticipate``), every ``redecide_period`` the
+    library recognizes the prefix (phase estimated); the gating commits to a skill
+    once it has been the answer ``confirmations`` times in a row, switches to
+    another skill the same way, and gives a committed skill up after as many
+    "unknown" answers ("undecided" changes nothing: wait for more of the motion).
+    When the motion is over (or at the timeout) the whole motion is recognized once
+    (``observed_fraction=1``, the test learning uses) and that answer is final: a
+    skill is executed, "unknown" or "undecided" makes the robot hold.
+    """
+    if state.final:
         return state
     motion = state.motion.append(time, sample)
-    if not should_decide(motion, rule):
-        return GatingDecision(motion)
-    component, resp = recognize_motion(library, motion, scale)
-    log.debug("gating decided %s at t=%.3f after %d samples", component, time, motion.n)
-    return GatingDecision(motion, True, component, resp, float(time))
+    t = float(time)
+    if should_decide(motion, rule):
+        rec = recognize_motion(library, motion, whole=True)
+        b = _belief(t, rec)
+        comp = b.best if b.status == "skill" else None
+        changed = comp != state.component
+        revisions = state.revisions + (1 if changed and state.component is not None else 0)
+        commits = state.commits + ((comp,) if comp is not None and changed else ())
+        commit_time = state.commit_time if not np.isnan(state.commit_time) or comp is None else t
+        resp = {} if rec is None else {int(k): float(r) for k, r in zip(rec.ids, rec.responsibilities)}
+        log.debug("gating final %s (%s) at t=%.3f after %d samples", b.status, comp, t, motion.n)
+        return GatingDecision(motion, comp, True, b.status, t if changed or comp is None else state.time,
+                              commit_time, revisions, commits, state.beliefs + (b,), resp, t, (_answer(b), 1))
+    if not should_redecide(state, motion, t, rule):
+        return replace(state, motion=motion)
+    rec = recognize_motion(library, motion, whole=False)
+    b = _belief(t, rec)
+    ans = _answer(b)
+    count = state.streak[1] + 1 if state.streak[0] == ans else 1
+    resp = {} if rec is None else {int(k): float(r) for k, r in zip(rec.ids, rec.responsibilities)}
+    new = replace(state, motion=motion, beliefs=state.beliefs + (b,), responsibilities=resp, last_check=t,
+                  streak=(ans, count))
+    if count < rule.confirmations:
+        return new
+    if isinstance(ans, int) and ans != state.component:
+        first = state.component is None and np.isnan(state.commit_time)
+        log.debug("gating %s %d at t=%.3f (phase %.2f)", "commits to" if first else "switches to", ans, t, b.phase)
+        return replace(new, component=ans, status="skill", time=t, commits=state.commits + (ans,),
+                       commit_time=t if np.isnan(state.commit_time) else state.commit_time,
+                       revisions=state.revisions + (0 if state.component is None else 1))
+    if ans == "unknown" and state.component is not None:
+        log.debug("gating gives up %d at t=%.3f", state.component, t)
+        return replace(new, component=None, status="pending", time=t, revisions=state.revisions + 1)
+    return new
 
 
 class SkillGating(LeafSystem):
-    """Accumulates the normalized wrist and, once the motion is over, recognizes the skill.
+    """Accumulates the normalized wrist, answers while the person moves, and finally when the motion is over.
 
     .. pydrake_system::
 
@@ -186,17 +276,16 @@ class SkillGating(LeafSystem):
         input_ports:
         - normalized_wrist
         output_ports:
-        - component
-        - responsibilities
-        - observed_motion
+        - decision
 
     Every 1/64 s the input is appended to the observed motion (abstract
-    state).  When the motion is over (:func:`motion_is_over`) or at the
-    configured decision time, ``library.recognize`` is called once.
-    ``component`` is then the chosen id, ``-1`` for unknown, and ``-2``
-    while undecided; ``responsibilities`` is a dict id -> p(k | w_h);
-    ``observed_motion`` (an :class:`ObservedMotion`) the samples the decision
-    was made on.  A context reset starts a new trial.
+    state); every ``rule.redecide_period`` the prefix is recognized and the
+    committed skill set, changed or given up (:func:`gating_step`); when the
+    motion is over (:func:`motion_is_over`), at the rule's decision time or at
+    its timeout, the whole motion is recognized once more and the answer is
+    final. ``decision`` is the :class:`GatingDecision`: the committed component
+    (an int, or None), ``status``, ``final``, the history of beliefs and the
+    samples. A context reset starts a new trial.
 
     Parameters
     ----------
@@ -205,30 +294,23 @@ class SkillGating(LeafSystem):
     rule : DecisionRule, optional
     dim : int
         Dimension of the wrist.
-    scale : float
-        The normalized range of the workspace (Eq. 14; 10 in the paper).
     """
 
-    def __init__(self, library: SkillLibrary, rule: DecisionRule | None = None, *, dim: int = 3,
-                 scale: float = 10.0):
+    def __init__(self, library: SkillLibrary, rule: DecisionRule | None = None, *, dim: int = 3):
         super().__init__()
         if not isinstance(library, SkillLibrary):
             raise ValueError(f"library must be a SkillLibrary, got {type(library).__name__}")
+        if rule is not None and not isinstance(rule, DecisionRule):
+            raise ValueError(f"rule must be a DecisionRule, got {type(rule).__name__}")
         self._library = library
-        self._rule = rule if rule is not None else DecisionRule()
-        self._scale = float(scale)
+        self._rule = replace(rule) if rule is not None else DecisionRule()  # our own copy
         self._wrist = self.DeclareVectorInputPort("normalized_wrist", dim)
         self._state = self.DeclareAbstractState(AbstractValue.Make(GatingDecision(
             ObservedMotion(np.zeros(0), np.zeros((0, dim))))))
         self.DeclarePeriodicUnrestrictedUpdateEvent(GATING_PERIOD, 0.0, self._update)
         self.DeclareForcedUnrestrictedUpdateEvent(self._update)
-        self._component = self.DeclareVectorOutputPort(
-            "component", 1, self._calc_component, prerequisites_of_calc={self.abstract_state_ticket(self._state)})
-        self._responsibilities = self.DeclareAbstractOutputPort(
-            "responsibilities", lambda: AbstractValue.Make(dict()), self._calc_responsibilities,
-            prerequisites_of_calc={self.abstract_state_ticket(self._state)})
-        self._motion = self.DeclareAbstractOutputPort(
-            "observed_motion", lambda: AbstractValue.Make(ObservedMotion()), self._calc_motion,
+        self._decision = self.DeclareAbstractOutputPort(
+            "decision", lambda: AbstractValue.Make(GatingDecision()), self._calc_decision,
             prerequisites_of_calc={self.abstract_state_ticket(self._state)})
 
     @property
@@ -245,17 +327,10 @@ class SkillGating(LeafSystem):
 
     def _update(self, context: Context, state: State) -> None:
         old = self.decision(context)
-        if old.decided:
+        if old.final:
             return
-        new = gating_step(old, context.get_time(), self._wrist.Eval(context), self._library, self._rule,
-                          self._scale)
+        new = gating_step(old, context.get_time(), self._wrist.Eval(context), self._library, self._rule)
         state.get_mutable_abstract_state(self._state).set_value(new)
 
-    def _calc_component(self, context: Context, output: BasicVector) -> None:
-        output.SetAtIndex(0, float(self.decision(context).component))
-
-    def _calc_responsibilities(self, context: Context, output: AbstractValue) -> None:
-        output.set_value(dict(self.decision(context).responsibilities))
-
-    def _calc_motion(self, context: Context, output: AbstractValue) -> None:
-        output.set_value(self.decision(context).motion)
+    def _calc_decision(self, context: Context, output: AbstractValue) -> None:
+        output.set_value(self.decision(context))

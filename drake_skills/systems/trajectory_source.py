@@ -1,10 +1,22 @@
-"""``JointTrajectorySource``: desired joint state and acceleration for the controller."""
+"""``JointTrajectorySource``: desired joint state and acceleration for the controller.
+
+A conditioned trajectory becomes a smooth :class:`JointPlan` once. A new one while a
+plan runs (the conditioner re-conditioned on a longer prefix, or the gating switched
+skills) is blended into the running command from the current desired position and
+velocity (:func:`blend_plan`): position and velocity stay continuous, the offset fades
+out over ``BLEND_TIME`` with a quintic, joint positions stay inside the limits (minus a
+margin) and, if the blend would exceed a joint's velocity limit, the rest of the plan is
+slowed down until it does not. When the trajectory is withdrawn (the gating gave the
+skill up) the robot decelerates to rest (:func:`stop_plan`) and holds.
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
 from pydrake.common.value import AbstractValue
+
+from drake_skills.systems.shared import Shared
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
 from pydrake.trajectories import PiecewisePolynomial
 
@@ -16,14 +28,23 @@ SOURCE_PERIOD = 1.0 / 64.0
 MIN_DURATION = 0.25
 
 
+#: Seconds over which a re-plan's offset from the running command fades out.
+BLEND_TIME = 0.5
+#: Seconds in which a withdrawn plan decelerates to rest.
+STOP_TIME = 0.5
+#: Distance kept from the joint limits (rad).
+LIMIT_MARGIN = 0.02
+
+
 @dataclass(frozen=True, eq=False)
-class JointPlan:
-    """A smooth joint trajectory built once from a conditioned trajectory.
+class JointPlan(Shared):
+    """A smooth joint trajectory built from a conditioned trajectory (or a stop).
 
     Attributes
     ----------
-    source : ConditionedTrajectory
-        What it was built from (compared by ``key`` to spot a new one).
+    source : ConditionedTrajectory or None
+        What it was built from (compared by ``key`` to spot a new one); None for a
+        stop (:func:`stop_plan`).
     q, qd, qdd : PiecewisePolynomial
         Position, velocity and acceleration over ``[start_time, end_time]``.
     """
@@ -32,14 +53,13 @@ class JointPlan:
     q: PiecewisePolynomial
     qd: PiecewisePolynomial
     qdd: PiecewisePolynomial
+    #: ``q``'s time span, kept as floats (the outputs ask for it at every plant step).
+    start_time: float = float("nan")
+    end_time: float = float("nan")
 
-    @property
-    def start_time(self) -> float:
-        return self.q.start_time()
-
-    @property
-    def end_time(self) -> float:
-        return self.q.end_time()
+    def __post_init__(self):
+        object.__setattr__(self, "start_time", float(self.q.start_time()))
+        object.__setattr__(self, "end_time", float(self.q.end_time()))
 
 
 def plan_knots(traj: ConditionedTrajectory, q_hold: np.ndarray, lower: np.ndarray, upper: np.ndarray, *,
@@ -78,6 +98,102 @@ def build_plan(traj: ConditionedTrajectory, q_hold: np.ndarray, lower: np.ndarra
     return JointPlan(traj, pp, qd, qd.derivative(1))
 
 
+def _quintic_fade(sigma: np.ndarray) -> np.ndarray:
+    """1 at 0, 0 from 1 on, with zero first and second derivatives at both ends."""
+    x = np.clip(sigma, 0.0, 1.0)
+    return 1.0 - x ** 3 * (10.0 - 15.0 * x + 6.0 * x ** 2)
+
+
+def _velocity_bump(sigma: np.ndarray, T: float) -> np.ndarray:
+    """``T sigma (1 - sigma)^3``: 0 at both ends, slope 1 per second at 0, flat at 1."""
+    x = np.clip(sigma, 0.0, 1.0)
+    return T * x * (1.0 - x) ** 3
+
+
+def _fit(times: np.ndarray, q: np.ndarray, v0: np.ndarray, source) -> JointPlan:
+    pp = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(times, q.T, np.asarray(v0, float).reshape(-1, 1),
+                                                                   np.zeros((q.shape[1], 1)))
+    qd = pp.derivative(1)
+    return JointPlan(source, pp, qd, qd.derivative(1))
+
+
+def peak_speed_ratio(plan: JointPlan, vmax: np.ndarray, n: int = 200) -> float:
+    """max over the plan and the joints of |qd| / vmax (sampled at ``n`` times)."""
+    ts = np.linspace(plan.start_time, plan.end_time, n)
+    qd = np.stack([plan.qd.value(t)[:, 0] for t in ts])
+    return float(np.max(np.abs(qd) / np.asarray(vmax, float)))
+
+
+def blend_plan(traj: ConditionedTrajectory, now: float, q0: np.ndarray, v0: np.ndarray, lower: np.ndarray,
+               upper: np.ndarray, vmax: np.ndarray | None = None, *, blend_time: float = BLEND_TIME,
+               margin: float = LIMIT_MARGIN) -> JointPlan:
+    """The rest of ``traj`` from ``now`` on, joined to the running command ``(q0, v0)`` without a jump.
+
+    ``q(t) = p(t) + f(s) (q0 - p(now)) + b(s) (v0 - p'(now))`` with ``p`` the
+    trajectory's mean played from its ``start_time``, ``s = (t - now) / blend_time``,
+    ``f`` a quintic fade and ``b`` a velocity bump, so ``q(now) = q0`` and
+    ``qd(now) = v0``; then a cubic with continuous second derivatives through knots
+    of that curve (start velocity ``v0``, end velocity 0), positions clipped to the
+    limits minus ``margin``. If ``vmax`` is given and the plan is faster, the part
+    after ``now`` and the blend are slowed down (time stretched) until it is not.
+
+    Parameters
+    ----------
+    traj : ConditionedTrajectory
+    now : float
+    q0, v0 : arrays, shape (D,)
+        The running command's position and velocity at ``now``.
+    lower, upper : arrays, shape (D,)
+    vmax : array, shape (D,), optional
+        Joint velocity limits (rad/s).
+    """
+    mean = np.asarray(traj.mean, float)
+    n = mean.shape[0]
+    duration = max(float(traj.duration), MIN_DURATION)
+    t_traj = traj.start_time + duration * np.linspace(0.0, 1.0, n)
+    end = max(t_traj[-1], now + blend_time)
+    stretch = 1.0
+    for _ in range(12):
+        span = (end - now) * stretch
+        times = now + span * np.linspace(0.0, 1.0, max(n, 20))
+        # the trajectory's own clock, slowed by `stretch` after now
+        tau = now + (times - now) / stretch
+        p = np.stack([np.interp(tau, t_traj, mean[:, j]) for j in range(mean.shape[1])], axis=1)
+        dt = 1e-3
+        p_now = np.array([np.interp(now, t_traj, mean[:, j]) for j in range(mean.shape[1])])
+        p_dot = (np.array([np.interp(now + dt, t_traj, mean[:, j]) for j in range(mean.shape[1])]) - p_now) / dt
+        p_dot /= stretch
+        T_b = blend_time * stretch
+        sig = (times - now) / T_b
+        q = p + np.outer(_quintic_fade(sig), q0 - p_now) + np.outer(_velocity_bump(sig, T_b), v0 - p_dot)
+        q = np.clip(q, np.asarray(lower) + margin, np.asarray(upper) - margin)
+        q[0] = q0
+        plan = _fit(times, q, v0, traj)
+        if vmax is None:
+            return plan
+        ratio = peak_speed_ratio(plan, vmax)
+        if ratio <= 1.0:
+            return plan
+        stretch *= 1.05 * ratio
+    return plan
+
+
+def stop_plan(now: float, q0: np.ndarray, v0: np.ndarray, lower: np.ndarray, upper: np.ndarray, *,
+              stop_time: float = STOP_TIME, margin: float = LIMIT_MARGIN) -> JointPlan:
+    """Decelerate from ``(q0, v0)`` to rest in ``stop_time`` and hold: ``q = q0 + v0 T (s - s^3 + s^4 / 2)``.
+
+    Velocity falls from ``v0`` to 0 with zero acceleration at the end; the robot
+    stops ``v0 T / 2`` further on (clipped to the limits).
+    """
+    T = float(stop_time)
+    times = now + T * np.linspace(0.0, 1.0, 20)
+    s_ = np.linspace(0.0, 1.0, 20)
+    q = np.asarray(q0, float) + np.outer(T * (s_ - s_ ** 3 + 0.5 * s_ ** 4), v0)
+    q = np.clip(q, np.asarray(lower) + margin, np.asarray(upper) - margin)
+    q[0] = q0
+    return _fit(times, q, v0, None)
+
+
 def desired_at(plan: JointPlan | None, q_hold: np.ndarray, time: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Desired (q, v, a) at ``time``: hold before the plan starts and its last point after it ends."""
     nq = q_hold.shape[0]
@@ -105,8 +221,10 @@ class JointTrajectorySource(LeafSystem):
     latched from ``measured_state`` ([q; v]) at initialization (a trial
     start), or ``q_default`` if the context was never initialized.  A new
     :class:`ConditionedTrajectory` on ``robot_trajectory`` is turned into a
-    smooth :class:`JointPlan` once, in an update every 1/64 s, and cached in
-    abstract state; the outputs only evaluate it.
+    smooth :class:`JointPlan` in an update every 1/64 s (blended into the
+    running plan, see the module docstring) and cached in abstract state; the
+    outputs only evaluate it. A trajectory withdrawn while a plan runs stops
+    the robot (:func:`stop_plan`).
 
     Parameters
     ----------
@@ -114,9 +232,11 @@ class JointTrajectorySource(LeafSystem):
         Joint limits (rad).
     q_default : array, shape (D,)
         Pose held before any measurement was latched.
+    velocity_limits : array, shape (D,), optional
+        Joint speed limits (rad/s) a blend is slowed down to respect.
     """
 
-    def __init__(self, lower, upper, q_default):
+    def __init__(self, lower, upper, q_default, velocity_limits=None):
         super().__init__()
         self._lower = np.asarray(lower, float).copy()
         self._upper = np.asarray(upper, float).copy()
@@ -125,6 +245,8 @@ class JointTrajectorySource(LeafSystem):
         if self._lower.shape != (n,) or self._upper.shape != (n,) or (self._upper <= self._lower).any():
             raise ValueError(f"joint limits must be two arrays of shape ({n},) with upper > lower")
         self._n = n
+        self._vmax = None if velocity_limits is None else np.asarray(velocity_limits, float).copy()
+        self._memo = (None, None)
         self._trajectory = self.DeclareAbstractInputPort("robot_trajectory", AbstractValue.Make(None))
         self._measured = self.DeclareVectorInputPort("measured_state", 2 * n)
         # (q_hold (n,), plan or None)
@@ -151,18 +273,35 @@ class JointTrajectorySource(LeafSystem):
     def _update(self, context: Context, state: State) -> None:
         traj = self._trajectory.Eval(context)
         q_hold, plan = context.get_abstract_state(self._state).get_value()
-        if traj is None or (plan is not None and plan.source.key == traj.key):
+        now = context.get_time()
+        if traj is None:
+            if plan is not None and plan.source is not None:  # withdrawn: stop where the command is
+                q0, v0, _ = desired_at(plan, q_hold, now)
+                new = stop_plan(now, q0, v0, self._lower, self._upper)
+                state.get_mutable_abstract_state(self._state).set_value((q_hold, new))
             return
         if not isinstance(traj, ConditionedTrajectory):
             raise ValueError(f"robot_trajectory must be a ConditionedTrajectory, got {type(traj).__name__}")
-        state.get_mutable_abstract_state(self._state).set_value(
-            (q_hold, build_plan(traj, q_hold, self._lower, self._upper)))
+        if plan is not None and plan.source is not None and plan.source.key == traj.key:
+            return
+        if plan is None:
+            new = build_plan(traj, q_hold, self._lower, self._upper)
+        else:
+            q0, v0, _ = desired_at(plan, q_hold, now)
+            new = blend_plan(traj, now, q0, v0, self._lower, self._upper, self._vmax)
+        state.get_mutable_abstract_state(self._state).set_value((q_hold, new))
+
+    def _desired(self, context: Context):
+        """(q, v, a) at the context's time; the two outputs ask at every plant step, so the last answer is kept."""
+        q_hold, plan = context.get_abstract_state(self._state).get_value()
+        key = (id(plan), id(q_hold), context.get_time())
+        if self._memo[0] != key:
+            self._memo = (key, desired_at(plan, q_hold, key[2]))
+        return self._memo[1]
 
     def _calc_state(self, context: Context, output: BasicVector) -> None:
-        q_hold, plan = context.get_abstract_state(self._state).get_value()
-        q, v, _ = desired_at(plan, q_hold, context.get_time())
+        q, v, _ = self._desired(context)
         output.SetFromVector(np.concatenate([q, v]))
 
     def _calc_acceleration(self, context: Context, output: BasicVector) -> None:
-        q_hold, plan = context.get_abstract_state(self._state).get_value()
-        output.SetFromVector(desired_at(plan, q_hold, context.get_time())[2])
+        output.SetFromVector(self._desired(context)[2])

@@ -7,22 +7,25 @@ whatever the numbers are: identical results for any number of workers, fractions
 import json
 import math
 from collections import Counter
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from drake_skills.evaluation.common import use_agg
-from drake_skills.evaluation.salad import (
-    CORRECT, UNKNOWN, WRONG, LabeledLibrary, SaladSettings, earliest_fraction, evaluate_salad, load_salad_data,
-    observed_prefix, response_errors, shared_workspace)
+from drake_skills.evaluation.labeled import CORRECT, UNKNOWN, WRONG, LabeledLibrary
+from drake_skills.evaluation.salad import evaluate_salad
+from drake_skills.evaluation.salad_data import SaladSettings, load_salad_data, shared_workspace
+from drake_skills.evaluation.salad_personal import earliest_fraction, observed_prefix, response_errors
 from drake_skills.library.incremental import Update
+from drake_skills.sim.models import FlangeKinematics
 
 use_agg()
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 TABLES = ("classification", "classification_matrix", "components_per_subject", "kl_vs_demos",
           "components_per_task", "components_per_task_matrix", "transfer", "response_vs_fraction",
-          "earliest_decision")
+          "earliest_decision", "anticipation")
 FIGURES = ("classification", "kl_vs_demos", "components_per_task", "transfer", "response_vs_fraction")
 
 
@@ -49,7 +52,6 @@ def test_quick_settings_are_small():
     s = SaladSettings.quick(seed=5)
     assert s.seed == 5
     assert s.n_subjects <= 3 and s.n_demos <= 5 and s.trials <= 3
-    s.validate()
     assert 1 <= s.train_per_task < s.n_demos
     assert s.grid()[-1] == 1.0
 
@@ -220,8 +222,7 @@ def test_earliest_fraction_needs_the_target_at_every_larger_fraction():
 
 
 def test_response_errors_are_nan_exactly_where_the_motion_is_unknown(cache):
-    s = SaladSettings.quick()
-    s.n_subjects = 2
+    s = replace(SaladSettings.quick(), n_subjects=2)
     data = load_salad_data(s, cache_dir=cache)[0]
     ws = data.workspace()
     lab = LabeledLibrary()
@@ -229,15 +230,17 @@ def test_response_errors_are_nan_exactly_where_the_motion_is_unknown(cache):
     for d in train:
         lab.teach(d, ws)
     grid = s.grid()
+    fk = FlangeKinematics()
     for demo in (data.by_task(s.tasks[0])[3], data.by_task(s.tasks[-1])[3]):  # a known and an unseen task
-        r = response_errors(lab, demo, ws, grid)
-        answered = r["outcome"] != UNKNOWN
+        r = response_errors(lab, demo, ws, grid, fk)
+        answered = np.isin(r.outcome, [CORRECT, WRONG])  # unknown and undecided are not executed
         for k in ("rmse", "flange", "prior_rmse", "prior_flange"):
-            assert r[k].shape == (len(grid),)
-            assert np.isfinite(r[k][answered]).all() and (r[k][answered] >= 0).all()
-            assert np.isnan(r[k][~answered]).all()
+            e = getattr(r, k)
+            assert e.shape == (len(grid),)
+            assert np.isfinite(e[answered]).all() and (e[answered] >= 0).all()
+            assert np.isnan(e[~answered]).all()
         if demo.task not in s.tasks[:2]:
-            assert (r["outcome"] != CORRECT).all()
+            assert (r.outcome != CORRECT).all()
 
 
 def test_shared_workspace_contains_every_personal_workspace(cache):
@@ -256,11 +259,8 @@ def test_shared_workspace_contains_every_personal_workspace(cache):
     (dict(n_subjects=1), "n_subjects"), (dict(n_train=4), "n_train"), (dict(fractions=(0.0, 1.0)), "fractions"),
     (dict(tasks=("board", "soup")), "tasks"), (dict(transfer_test=9), "transfer_test")])
 def test_inconsistent_settings_are_rejected_with_the_setting_named(change, message):
-    s = SaladSettings.quick()
-    for k, v in change.items():
-        setattr(s, k, v)
     with pytest.raises(ValueError, match=message):
-        evaluate_salad(s, progress=False)
+        replace(SaladSettings.quick(), **change)
 
 
 def test_cli_eval_salad_quick_writes_its_artifacts(tmp_path, capsys):
@@ -277,3 +277,16 @@ def test_cli_eval_salad_quick_writes_its_artifacts(tmp_path, capsys):
     assert summary["settings"]["n_subjects"] == SaladSettings.quick().n_subjects
     assert any((out / "cache").rglob("*.npz"))
     assert "## classification" in capsys.readouterr().out
+
+
+def test_anticipation_table_counts_four_outcomes_and_the_phase_error(reports):
+    """Prefixes recognized without the fraction: the four outcomes sum to one, and on whole motions the estimated
+    phase is within 0.1 of 1 (measured: 0.97-1.0)."""
+    rep = reports[1]
+    t = rep.tables["anticipation"]
+    assert t.columns[:5] == ["true observed fraction", "correct", "wrong", "unknown", "undecided"]
+    for row in t.rows:
+        assert abs(sum(row[1:5]) - 1.0) < 1e-9
+    full = [r for r in t.rows if r[0] == 1.0][0]
+    assert full[5] == pytest.approx(1.0, abs=0.1) and full[6] < 0.1
+    assert full[2] == 0.0  # no wrong answer on whole motions

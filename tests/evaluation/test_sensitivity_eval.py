@@ -2,6 +2,7 @@
 import json
 import subprocess
 import sys
+from dataclasses import replace
 
 import pytest
 
@@ -19,7 +20,7 @@ def reports(tmp_path_factory):
 def test_one_row_per_configuration_with_fractions_that_sum_to_one(reports):
     rep, _ = reports
     t = rep.tables["sensitivity"]
-    assert t.column("configuration") == ["default", "tolerance 0.1"]
+    assert t.column("configuration") == list(CONFIGS)[:2]
     for name, row in rep.summary["configs"].items():
         assert 0.0 <= row["letters_one_per_shape"] <= 1.0
         parts = [row["salad_correct"], row["salad_wrong"], row["salad_unknown"]]
@@ -35,10 +36,12 @@ def test_results_do_not_depend_on_the_number_of_workers(reports):
 
 
 def test_bad_overrides_fail_before_any_work():
-    s = SensitivitySettings.quick()
-    s.configs = {"typo": {"gating_flor": 0.5}}
     with pytest.raises(ValueError, match="gating_flor"):
-        evaluate_sensitivity(s, progress=False)
+        replace(SensitivitySettings.quick(), configs={"typo": {"gating_flor": 0.5}})
+    with pytest.raises(ValueError, match="are gone"):
+        replace(SensitivitySettings.quick(), configs={"old": {"gating_floor": 0.5}})
+    with pytest.raises(ValueError, match="n_train"):
+        replace(SensitivitySettings.quick(), n_train=9)
 
 
 def test_cli_writes_the_table(tmp_path):

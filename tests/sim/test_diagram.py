@@ -1,4 +1,5 @@
 """The closed loop in simulation: build, run, hand over, hold still, render (pydrake is a hard dependency)."""
+import json
 import shutil
 import subprocess
 from pathlib import Path
@@ -8,12 +9,11 @@ import pytest
 from pydrake.systems.analysis import Simulator
 
 from drake_skills import SkillLibrary
-from drake_skills.data.salad import TASKS, generate_subject
+from drake_skills.scenario.salad import TASKS, generate_subject
 from drake_skills.sim.config import SimConfig
 from drake_skills.sim.demo import CollaborationSim
 from drake_skills.sim.diagram import build_diagram
 from drake_skills.sim.models import HOME_Q, IIWA7_JOINT_LIMITS
-from drake_skills.systems.gating import PENDING, UNKNOWN
 
 CHROMIUM = "/usr/bin/chromium"
 #: Robot link colour of models/iiwa7/iiwa7.sdf (diffuse 1.0 0.42 0.04), as 8-bit RGB, and a tolerance.
@@ -43,15 +43,17 @@ def test_diagram_builds_and_simulates_a_short_run(subject):
     diagram, h = build_diagram(SimConfig(), library=SkillLibrary(), workspace=subject.workspace())
     names = {diagram.GetSubsystemByName(n).get_name() for n in
              ("human_wrist_source", "workspace_normalizer", "skill_gating", "interaction_promp_conditioner",
-              "joint_trajectory_source", "inverse_dynamics_controller")}
-    assert len(names) == 6
+              "joint_trajectory_source", "inverse_dynamics_controller", "trial_monitor")}
+    assert len(names) == 7
     assert h.plant.time_step() == 1e-3 and h.controller_plant.num_positions() == 7
     simulator = Simulator(diagram)
     simulator.AdvanceTo(0.25)
     ctx = simulator.get_context()
     q = h.plant.GetPositions(h.plant.GetMyContextFromRoot(ctx), h.iiwa)
     np.testing.assert_allclose(q, HOME_Q, atol=1e-6)
-    assert h.gating.GetOutputPort("component").Eval(h.gating.GetMyContextFromRoot(ctx))[0] == PENDING
+    assert h.gating.GetOutputPort("decision").Eval(h.gating.GetMyContextFromRoot(ctx)).status == "pending"
+    assert h.trial_monitor.GetOutputPort("trial_status").Eval(h.trial_monitor.GetMyContextFromRoot(ctx)).phase == \
+        "observing"
 
 
 @pytest.mark.parametrize("task", ["tomato", "standup"])
@@ -71,33 +73,73 @@ def test_unknown_keeps_the_robot_still(subject):
     sim = CollaborationSim(SimConfig(unknown_hold_time=1.0), SkillLibrary(), subject.workspace())
     demo = subject.by_task("bowl")[0]
     outcome, log = sim.run_trial(demo)
-    assert outcome["component"] == UNKNOWN and not outcome["executed"]
+    assert outcome.component is None and not outcome.executed
     assert np.abs(log.q - log.q[0]).max() < 1e-3
     assert log.times[-1] - log.times[0] > demo.duration
 
 
-def test_demo_command_writes_a_recording_that_renders_the_robot(tmp_path):
-    """`drake-skills demo` (short) -> demo.html -> headless Chromium screenshot shows the orange robot."""
+def test_taught_library_answers_unknown_for_an_untaught_task_and_the_trial_ends_after_the_hold(subject):
+    """Board, tomato, bowl and dressing taught (4 demonstrations each), then a standup motion: unknown."""
+    config = SimConfig(unknown_hold_time=0.75)
+    sim = CollaborationSim(config, SkillLibrary(), subject.workspace())
+    for k in range(4):
+        for task in ("board", "tomato", "bowl", "dressing"):
+            sim.teach(subject.by_task(task)[k])
+    assert sim.library.n_components >= 4
+    outcome, log = sim.run_trial(subject.by_task("standup")[4])
+    assert outcome.component is None and not outcome.executed
+    assert np.abs(log.q - log.q[0]).max() < 1e-3  # the robot held still
+    # the Diagram's trial_status ended the trial: decision + hold time, on the log grid
+    assert outcome.end_time == pytest.approx(outcome.start_time + outcome.decision_time + 0.75)
+    known, _ = sim.run_trial(subject.by_task("bowl")[4])  # a taught task is still recognized
+    assert known.component is not None and sim.label_of(known.component) == "bowl"
+
+
+def test_demo_command_writes_a_recording_that_shows_the_robot_and_the_decision_colour(tmp_path):
+    """`drake-skills demo` (one trial, empty library: "unknown", held 8 s) -> demo.html -> headless Chromium.
+
+    The page opened at ``#t=`` just after the trial's final answer (the legend's link) shows the
+    orange robot and the magenta of "unknown" on the wrist and the lamp, held there for 8 s: the
+    colour track is on the geometry, ``<path>/<object>`` (on the group it is ignored, everything
+    stays grey and this fails). Opened at 0.1 s (still observing) no magenta shows.
+    """
     from drake_skills.cli import main
 
     assert Path(CHROMIUM).exists() or shutil.which("chromium"), "chromium is required: apt-get install chromium"
     out = tmp_path / "demo"
-    assert main(["demo", "--quick", "--trials", "3", "--out", str(out)]) == 0
+    config = tmp_path / "sim.yaml"  # the demo builds its library from SimConfig.library
+    config.write_text("seed: 4\nunknown_hold_time: 8.0\nlibrary:\n  n_basis_robot: 18\n")
+    assert main(["demo", "--quick", "--trials", "1", "--seed", "0", "--config", str(config), "--out", str(out)]) == 0
     html = out / "demo.html"
     assert html.stat().st_size > 100_000
-    assert (out / "summary.json").exists() and (out / "library.npz").exists()
-    assert SkillLibrary.load(out / "library.npz").n_components >= 1
-    shot = tmp_path / "shot.png"
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["seed"] == 0  # --seed wins over the file
+    (r,) = summary["results"]
+    assert r["trial"] == 1 and r["component"] is None and r["status"] == "unknown"
+    assert (out / "trials" / "trial_01.png").stat().st_size > 5_000
+    assert "drake-skills-legend" in html.read_text()
+    lib = SkillLibrary.load(out / "library.npz")
+    assert lib.n_components >= 1 and lib.config.n_basis_robot == 18
     chromium = CHROMIUM if Path(CHROMIUM).exists() else shutil.which("chromium")
-    subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
-                    "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                    "--no-first-run", f"--user-data-dir={tmp_path / 'profile'}", f"--screenshot={shot}",
-                    "--window-size=1280,800", "--virtual-time-budget=8000", html.resolve().as_uri()],
-                   check=True, capture_output=True, timeout=120, cwd=tmp_path)
-    import matplotlib.image
 
-    img = (matplotlib.image.imread(str(shot))[..., :3] * 255).astype(int)
-    assert img.shape[:2] == (800, 1280)
-    assert img.reshape(-1, 3).std(axis=0).max() > 20, "screenshot is blank"
-    robot = (np.abs(img - ROBOT_RGB).max(axis=-1) < 60).sum()
+    def screenshot(t: float):
+        import matplotlib.image
+
+        shot = tmp_path / f"shot_{t}.png"
+        subprocess.run([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
+                        "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                        "--no-first-run", f"--user-data-dir={tmp_path / 'profile'}", f"--screenshot={shot}",
+                        "--window-size=1280,800", "--virtual-time-budget=8000", html.resolve().as_uri() + f"#t={t}"],
+                       check=True, capture_output=True, timeout=240, cwd=tmp_path)
+        img = (matplotlib.image.imread(str(shot))[..., :3] * 255).astype(int)
+        assert img.shape[:2] == (800, 1280)
+        assert img.reshape(-1, 3).std(axis=0).max() > 20, "screenshot is blank"
+        scene = img[:700]  # above the legend panel (its swatches are magenta too)
+        magenta = ((scene[..., 0] > 120) & (scene[..., 2] > 100) & (scene[..., 1] < 0.45 * scene[..., 0])).sum()
+        return (np.abs(img - ROBOT_RGB).max(axis=-1) < 60).sum(), int(magenta)
+
+    robot, magenta = screenshot(round(r["start_time"] + r["decision_delay"] + 1.0, 2))
     assert robot > 1500, f"only {robot} robot-coloured pixels"
+    assert magenta > 400, f"only {magenta} pixels of the 'unknown' magenta: the decision colour is not shown"
+    _, before = screenshot(0.1)
+    assert before < 50, f"{before} magenta pixels while the person is still observed"

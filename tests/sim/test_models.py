@@ -3,7 +3,8 @@ import numpy as np
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 
-from drake_skills.data.salad import TASKS, grasp_configuration
+from drake_skills.scenario.salad import TASKS
+from drake_skills.sim.salad_robot import grasp_configuration
 from drake_skills.sim.models import (FLANGE_FRAME, IIWA7_BASE_FRAME, IIWA7_HEIGHT, IIWA7_JOINT_LIMITS,
                                      IIWA7_JOINT_NAMES, IIWA7_TORQUE_LIMITS, IIWA7_VELOCITY_LIMITS,
                                      add_salad_scene, load_scene_config, make_iiwa7_plant, models_dir)

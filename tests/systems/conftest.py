@@ -3,11 +3,7 @@ import numpy as np
 import pytest
 
 from drake_skills import LibraryConfig, SkillLibrary
-from drake_skills.systems.gating import identity_workspace
-from synthetic import synthetic_demo
-
-#: Synthetic demos are in normalized units already: this workspace maps them to themselves.
-WORKSPACE = identity_workspace(3)
+from synthetic import WORKSPACE, synthetic_demo
 
 
 @pytest.fixture(scope="session")

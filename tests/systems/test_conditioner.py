@@ -1,15 +1,28 @@
+import logging
+
 import numpy as np
 import pytest
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.common.value import AbstractValue
+from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
 
-from drake_skills.systems.conditioner import ConditionedTrajectory, InteractionProMPConditioner, condition_robot
-from drake_skills.systems.gating import ObservedMotion, identity_workspace
+from drake_skills.systems.conditioner import (ConditionedTrajectory, Conditioning, InteractionProMPConditioner,
+                                              condition_robot, conditioning_step)
+from drake_skills.systems.gating import GatingDecision, ObservedMotion
+from drake_skills.systems.trajectory_source import JointTrajectorySource
 
-WORKSPACE = identity_workspace(3)  # the synthetic demos are in normalized units
+from synthetic import WORKSPACE  # the synthetic demos are in normalized units
 
 
 def _motion(demo):
     y = WORKSPACE.normalize(demo.human)
     return ObservedMotion(demo.t.copy(), y)
+
+
+def _decision(demo, component, time=1.0, final=True):
+    status = "skill" if component is not None else "unknown"
+    return GatingDecision(_motion(demo), component, final, status, time)
 
 
 def test_condition_robot_equals_predict_robot(library, demo):
@@ -33,19 +46,18 @@ def _step(system, context):
 def test_no_trajectory_while_pending_or_unknown(library, demo):
     cond = InteractionProMPConditioner(library)
     context = cond.CreateDefaultContext()
-    cond.GetInputPort("observed_motion").FixValue(context, _motion(demo))
-    for k in (-2, -1):
-        cond.GetInputPort("component").FixValue(context, [k])
+    for decision in (GatingDecision(_motion(demo)), _decision(demo, None)):
+        cond.GetInputPort("decision").FixValue(context, decision)
         _step(cond, context)
         assert cond.GetOutputPort("robot_trajectory").Eval(context) is None
+        assert cond.GetOutputPort("conditioning").Eval(context).component is None
 
 
 def test_conditions_once_per_decision(library, demo, monkeypatch):
     cond = InteractionProMPConditioner(library)
     context = cond.CreateDefaultContext()
     k = library.recognize(demo.human, workspace=WORKSPACE).component
-    cond.GetInputPort("observed_motion").FixValue(context, _motion(demo))
-    cond.GetInputPort("component").FixValue(context, [k])
+    cond.GetInputPort("decision").FixValue(context, _decision(demo, k))
     calls = []
     original = library.predict_robot
     monkeypatch.setattr(library, "predict_robot", lambda *a, **kw: calls.append(1) or original(*a, **kw))
@@ -58,3 +70,75 @@ def test_conditions_once_per_decision(library, demo, monkeypatch):
         _step(cond, context)
     assert len(calls) == 1
     assert cond.GetOutputPort("robot_trajectory").Eval(context).start_time == 1.5
+
+
+def test_a_deleted_component_is_logged_and_gives_no_trajectory_so_the_robot_holds(library, demo, caplog):
+    """The gating chose a component that is gone by the time of conditioning (deleted meanwhile)."""
+    gone = max(c.id for c in library.components) + 100
+    with caplog.at_level(logging.WARNING, logger="drake_skills.systems.conditioner"):
+        result = conditioning_step(Conditioning(), _decision(demo, gone), library, 1.0)
+    assert result.component == gone and result.trajectory is None and result.failed
+    assert f"cannot condition component {gone}" in caplog.text
+    assert conditioning_step(result, _decision(demo, gone), library, 2.0) is result  # tried once per trial
+
+    # in a diagram: the trajectory source keeps the robot at its hold pose
+    n = 7
+    lower, upper, q_hold = -np.full(n, 3.0), np.full(n, 3.0), np.linspace(-0.3, 0.3, n)
+    builder = DiagramBuilder()
+    decision = builder.AddSystem(ConstantValueSource(AbstractValue.Make(_decision(demo, gone, time=0.0))))
+    cond = builder.AddSystem(InteractionProMPConditioner(library))
+    source = builder.AddSystem(JointTrajectorySource(lower, upper, q_hold))
+    measured = builder.AddSystem(ConstantVectorSource(np.concatenate([q_hold, np.zeros(n)])))
+    builder.Connect(decision.get_output_port(), cond.GetInputPort("decision"))
+    builder.Connect(cond.GetOutputPort("robot_trajectory"), source.GetInputPort("robot_trajectory"))
+    builder.Connect(measured.get_output_port(), source.GetInputPort("measured_state"))
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    with caplog.at_level(logging.WARNING, logger="drake_skills.systems.conditioner"):
+        simulator.AdvanceTo(0.5)
+    ctx = simulator.get_context()
+    assert cond.conditioning(cond.GetMyContextFromRoot(ctx)).failed
+    desired = source.GetOutputPort("desired_state").Eval(source.GetMyContextFromRoot(ctx))
+    np.testing.assert_array_equal(desired, np.concatenate([q_hold, np.zeros(n)]))
+    assert caplog.text.count("cannot condition component") == 2  # the step above, then the diagram, once
+
+
+def test_the_library_gets_normalized_samples_and_no_workspace(library, demo, monkeypatch):
+    seen = {}
+    original = library.predict_robot
+    monkeypatch.setattr(library, "predict_robot", lambda *a, **kw: seen.update(kw) or original(*a, **kw))
+    k = library.recognize(demo.human, workspace=WORKSPACE).component
+    condition_robot(library, k, _motion(demo), 0.0)
+    assert seen["normalized"] is True and seen.get("workspace") is None
+
+
+def test_reconditions_on_the_growing_prefix_and_once_on_the_whole_motion(library, demo):
+    """Same component while the person moves: revisions on longer prefixes, same start; then the final one."""
+    k = library.recognize(demo.human, workspace=WORKSPACE, observed_fraction=1.0).component
+    motion = _motion(demo)
+    state = Conditioning()
+    starts, revisions, phases = [], [], []
+    for i, n in enumerate(range(40, motion.n, 10)):
+        prefix = ObservedMotion(motion.times[:n], motion.samples[:n])
+        t = 1.0 + i * 0.125
+        state = conditioning_step(state, GatingDecision(prefix, k, False, "skill", 1.0), library, t)
+        starts.append(state.trajectory.start_time)
+        revisions.append(state.trajectory.revision)
+        phases.append(state.trajectory.phase)
+    assert set(starts) == {1.0} and revisions == list(range(len(revisions)))
+    assert all(0 < p <= 1 for p in phases) and phases[-1] > phases[0]  # more of the motion seen
+    # not again within RECONDITION_PERIOD, nor without new samples
+    assert conditioning_step(state, GatingDecision(prefix, k, False, "skill", 1.0), library, t + 0.01) is state
+    final = conditioning_step(state, _decision(demo, k), library, t + 0.5)
+    assert final.final and final.trajectory.phase == 1.0 and final.trajectory.revision == revisions[-1] + 1
+    assert conditioning_step(final, _decision(demo, k), library, t + 1.0) is final
+
+
+def test_a_switch_starts_a_new_trajectory_and_giving_up_withdraws_it(library, demo):
+    ids = [c.id for c in library.components]
+    motion = _motion(demo)
+    a = conditioning_step(Conditioning(), GatingDecision(motion, ids[0], False, "skill", 1.0), library, 1.0)
+    b = conditioning_step(a, GatingDecision(motion, ids[1], False, "skill", 2.0), library, 2.0)
+    assert b.component == ids[1] and b.trajectory.start_time == 2.0 and b.trajectory.revision == 0
+    gone = conditioning_step(b, GatingDecision(motion, None, False, "pending", 2.5), library, 2.5)
+    assert gone.component is None and gone.trajectory is None and not gone.final

@@ -4,13 +4,13 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 from drake_skills import SkillLibrary
-from drake_skills.systems.gating import (PENDING, UNKNOWN, DecisionRule, GatingDecision, ObservedMotion, SkillGating,
-                                         gating_step, motion_is_over, recognize_motion, should_decide)
+from drake_skills.systems.decision_rule import DecisionRule
+from drake_skills.systems.gating import (GatingDecision, ObservedMotion, SkillGating, gating_step, motion_is_over,
+                                         recognize_motion, should_decide)  # noqa: F401
 from drake_skills.systems.normalizer import WorkspaceNormalizer
 from drake_skills.systems.wrist_source import HumanWristSource, WristTrial
-from drake_skills.systems.gating import identity_workspace
 
-WORKSPACE = identity_workspace(3)  # the synthetic demos are in normalized units
+from synthetic import WORKSPACE  # the synthetic demos are in normalized units
 
 RULE = DecisionRule()
 
@@ -39,33 +39,109 @@ def test_decision_time_overrides_stillness():
     assert should_decide(_motion(moving[:33]), rule)
 
 
+def test_timeout_decides_a_motion_that_never_stops_after_the_timeout_and_not_before():
+    rule = DecisionRule(timeout=0.5)
+    moving = np.outer(np.linspace(0, 40, 200), [1, 0, 0])  # never still
+    assert not any(should_decide(_motion(moving[:n]), rule) for n in range(1, 32))  # 31 samples: 0.47 s
+    assert should_decide(_motion(moving[:33]), rule)  # 0.5 s after the first sample
+    assert not any(should_decide(_motion(moving[:n]), DecisionRule()) for n in range(1, 200))
+
+
+def _run(state, y, library, rule, t0=0.0, dt=1 / 64):
+    for i, p in enumerate(y):
+        state = gating_step(state, t0 + i * dt, p, library, rule)
+        if state.final:
+            break
+    return state
+
+
+def _with_rest(y, ticks=40):
+    return np.vstack([y, np.repeat(y[-1:], ticks, axis=0)])
+
+
+def test_gating_decides_at_the_timeout(library, demo):
+    y = WORKSPACE.normalize(demo.human)
+    wobble = y[-1] + np.outer(np.sin(np.arange(400)), [0.5, 0, 0])  # the hand never comes to rest
+    state = _run(GatingDecision(), np.vstack([y, wobble]), library, DecisionRule(timeout=2.0))
+    assert state.final and state.time == pytest.approx(2.0) or state.commit_time < 2.0
+    assert state.beliefs[-1].time == pytest.approx(2.0)
+
+
 def test_empty_library_answers_unknown():
-    assert recognize_motion(SkillLibrary(), _motion(np.outer(np.linspace(0, 3, 9), [1, 1, 0])))[0] == UNKNOWN
+    assert recognize_motion(SkillLibrary(), _motion(np.outer(np.linspace(0, 3, 9), [1, 1, 0])), whole=True) is None
+    state = _run(GatingDecision(), _with_rest(np.outer(np.linspace(0, 3, 30), [1, 1, 0])), SkillLibrary(), RULE)
+    assert state.final and state.status == "unknown" and state.component is None and state.commits == ()
 
 
 def test_recognize_motion_finds_the_demonstrated_skill(library, demo):
     y = WORKSPACE.normalize(demo.human)
-    k, resp = recognize_motion(library, _motion(y))
-    assert k == library.recognize(demo.human, workspace=WORKSPACE).component
-    assert k >= 0 and resp[k] > 0.9
+    rec = recognize_motion(library, _motion(y), whole=True)
+    assert rec.component == library.recognize(demo.human, workspace=WORKSPACE, observed_fraction=1.0).component
+    assert rec.status == "skill" and rec.responsibilities.max() > 0.9
+    prefix = recognize_motion(library, _motion(y[: len(y) // 2]), whole=False)
+    assert prefix.phases.size == library.n_components  # the phase was estimated, not given
 
 
-def test_gating_step_decides_once_and_then_freezes(library, demo):
+def test_gating_commits_while_the_person_moves_and_the_final_answer_agrees(library, demo):
+    """Anticipation: the same skill twice in a row commits, long before the motion is over."""
     y = WORKSPACE.normalize(demo.human)
+    rule = DecisionRule()
+    state = _run(GatingDecision(), _with_rest(y), library, rule)
+    k = library.recognize(demo.human, workspace=WORKSPACE, observed_fraction=1.0).component
+    assert state.final and state.status == "skill" and state.component == k and type(k) is int
+    assert state.commits == (k,) and state.revisions == 0
+    assert state.commit_time < (len(y) - 1) / 64  # committed before the motion ended
+    # commit needed `confirmations` equal answers, one re-decision every redecide_period
+    skills = [b for b in state.beliefs if b.time <= state.commit_time]
+    assert [b.best for b in skills[-rule.confirmations:]] == [k] * rule.confirmations
+    assert all(b.status == "skill" for b in skills[-rule.confirmations:])
+    gaps = np.diff([b.time for b in state.beliefs[:-1]])
+    assert gaps.min() >= rule.redecide_period - 1e-9
+    assert gating_step(state, 99.0, np.ones(3), library, rule) is state  # final: frozen
+
+
+def test_without_anticipation_the_gating_decides_once_at_rest(library, demo):
+    y = WORKSPACE.normalize(demo.human)
+    state = _run(GatingDecision(), _with_rest(y), library, DecisionRule(anticipate=False))
+    assert state.final and len(state.beliefs) == 1 and state.commit_time == pytest.approx(state.time)
+    assert state.time > (len(y) - 1) / 64
+
+
+def test_a_committed_skill_is_switched_or_given_up_when_the_answers_change(library, demo):
+    """Scripted answers: commit after two, switch after two of another, give up after two 'unknown'."""
+    class Scripted:
+        n_components = 1
+
+        def __init__(self, answers):
+            self.answers = list(answers)
+
+        def recognize(self, y, normalized, observed_fraction):
+            from drake_skills.library.views import Recognition
+            status, k = self.answers.pop(0) if self.answers else ("unknown", None)
+            post = np.array([1.0, 0.0]) if k == 7 else np.array([0.0, 1.0])
+            return Recognition(k if status == "skill" else None, (7, 8), post, np.zeros(2), np.zeros(2), 3, status,
+                               np.full(2, 0.5), post if status != "unknown" else np.zeros(2))
+
+    rule = DecisionRule(confirmations=2)
+    lib = Scripted([("skill", 7), ("undecided", None), ("skill", 7), ("skill", 7), ("skill", 8), ("skill", 8),
+                    ("unknown", None), ("unknown", None)])
+    moving = np.outer(np.linspace(0, 20, 200), [1, 0, 0])
     state = GatingDecision()
-    for i, p in enumerate(np.vstack([y, np.repeat(y[-1:], 40, axis=0)])):
-        state = gating_step(state, i / 64, p, library, RULE)
-        if state.decided:
+    comps = []
+    for i, p in enumerate(moving):
+        state = gating_step(state, i / 64, p, lib, rule)
+        comps.append(state.component)
+        if not lib.answers:
             break
-    assert state.decided and state.component >= 0
-    assert gating_step(state, 99.0, np.ones(3), library, RULE) is state
+    assert state.commits == (7, 8) and state.revisions == 2 and state.component is None and not state.final
+    assert [c for i, c in enumerate(comps) if i == 0 or c != comps[i - 1]] == [None, 7, 8, None]
 
 
 def test_outputs_pending_then_the_component_after_forced_updates(library, demo):
     gating = SkillGating(library)
     context = gating.CreateDefaultContext()
-    assert gating.GetOutputPort("component").Eval(context)[0] == PENDING
-    assert gating.GetOutputPort("responsibilities").Eval(context) == {}
+    port = gating.GetOutputPort("decision")
+    assert port.Eval(context).status == "pending" and port.Eval(context).responsibilities == {}
     y = WORKSPACE.normalize(demo.human)
     scratch = context.Clone()
     samples = np.vstack([y[::2], np.repeat(y[-1:], 40, axis=0)])
@@ -74,10 +150,12 @@ def test_outputs_pending_then_the_component_after_forced_updates(library, demo):
         gating.GetInputPort("normalized_wrist").FixValue(context, p)
         gating.CalcForcedUnrestrictedUpdate(context, scratch.get_mutable_state())
         context.SetAbstractState(0, scratch.get_abstract_state(0).get_value())
-    k = gating.GetOutputPort("component").Eval(context)[0]
-    assert k == library.recognize(demo.human, workspace=WORKSPACE).component
-    assert sum(gating.GetOutputPort("responsibilities").Eval(context).values()) == pytest.approx(1.0)
-    assert gating.GetOutputPort("observed_motion").Eval(context).n < len(samples)  # stopped accumulating
+    decision = port.Eval(context)
+    assert decision.final
+    assert decision.component == library.recognize(demo.human, workspace=WORKSPACE, observed_fraction=1.0).component
+    assert type(decision.component) is int  # an integer id travels, no float to round
+    assert sum(decision.responsibilities.values()) == pytest.approx(1.0)
+    assert decision.motion.n < len(samples)  # stopped accumulating
 
 
 def test_replayed_motion_is_decided_in_a_simulation(library, demo):
@@ -92,5 +170,7 @@ def test_replayed_motion_is_decided_in_a_simulation(library, demo):
     simulator.AdvanceTo(demo.duration + 0.5)
     context = gating.GetMyContextFromRoot(simulator.get_context())
     decision = gating.decision(context)
-    assert decision.decided and decision.component == library.recognize(demo.human, workspace=WORKSPACE).component
-    assert demo.duration < decision.time < demo.duration + 0.4
+    k = library.recognize(demo.human, workspace=WORKSPACE, observed_fraction=1.0).component
+    assert decision.final and decision.component == k and decision.commits == (k,)
+    assert decision.commit_time < demo.duration  # committed while the hand was still moving
+    assert demo.duration < decision.beliefs[-1].time < demo.duration + 0.4  # the final answer at rest

@@ -2,18 +2,20 @@ import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
 
-from drake_skills.promp.preprocessing import Workspace
-from drake_skills.systems.normalizer import WorkspaceNormalizer, normalize_point, normalized_relative
+from drake_skills.data.workspace import Workspace
+from drake_skills.systems.normalizer import WorkspaceNormalizer, normalized_relative
 
 WS = Workspace(np.array([-0.5, 0.0, 0.5]), np.array([0.5, 1.0, 1.5]))
 
 
-def test_normalize_point_matches_eq14_of_workspace():
+def test_normalized_relative_is_the_workspaces_eq14():
     y = np.array([[0.1, 0.2, 0.9], [0.3, 0.6, 1.2]])
     expected = WS.normalize(y, subtract_start=True)
-    start = normalize_point(WS, y[0])
-    np.testing.assert_allclose(normalized_relative(WS, y[1], start), expected[1], atol=1e-12)
+    start = WS.normalize(y, subtract_start=False)[0]
+    np.testing.assert_array_equal(normalized_relative(WS, y[1], start), expected[1])  # the same formula, bit for bit
     np.testing.assert_allclose(normalized_relative(WS, y[1], None), 0.0)
+    np.testing.assert_array_equal(normalized_relative(WS, y[1], start, subtract_start=False),
+                                  WS.normalize(y, subtract_start=False)[1])
 
 
 def test_output_is_zero_until_a_start_is_latched_then_relative_to_it():

@@ -3,10 +3,12 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 from drake_skills.systems.conditioner import ConditionedTrajectory, InteractionProMPConditioner
-from drake_skills.systems.gating import SkillGating, identity_workspace
+from drake_skills.systems.gating import SkillGating
 from drake_skills.systems.normalizer import WorkspaceNormalizer
 from drake_skills.systems.trajectory_source import JointTrajectorySource, build_plan, desired_at, plan_knots
 from drake_skills.systems.wrist_source import HumanWristSource, WristTrial
+
+from synthetic import WORKSPACE
 
 LOWER, UPPER = -np.full(7, 2.0), np.full(7, 2.0)
 HOME = np.array([0.0, 0.3, 0.0, -1.2, 0.0, 0.6, 0.0])
@@ -73,7 +75,7 @@ def test_holds_the_measured_pose_until_a_trajectory_arrives():
 
 
 def test_whole_chain_turns_a_replayed_motion_into_a_joint_plan(library, demo):
-    ws = identity_workspace(3)
+    ws = WORKSPACE
     builder = DiagramBuilder()
     wrist = builder.AddSystem(HumanWristSource(WristTrial(demo.t, demo.human)))
     norm = builder.AddSystem(WorkspaceNormalizer(ws))
@@ -82,8 +84,7 @@ def test_whole_chain_turns_a_replayed_motion_into_a_joint_plan(library, demo):
     source = builder.AddSystem(JointTrajectorySource(LOWER, UPPER, np.zeros(7)))
     builder.Connect(wrist.GetOutputPort("human_wrist"), norm.GetInputPort("human_wrist"))
     builder.Connect(norm.GetOutputPort("normalized_wrist"), gating.GetInputPort("normalized_wrist"))
-    builder.Connect(gating.GetOutputPort("component"), cond.GetInputPort("component"))
-    builder.Connect(gating.GetOutputPort("observed_motion"), cond.GetInputPort("observed_motion"))
+    builder.Connect(gating.GetOutputPort("decision"), cond.GetInputPort("decision"))
     builder.Connect(cond.GetOutputPort("robot_trajectory"), source.GetInputPort("robot_trajectory"))
     builder.ExportInput(source.GetInputPort("measured_state"), "measured_state")
     diagram = builder.Build()
@@ -101,3 +102,71 @@ def test_whole_chain_turns_a_replayed_motion_into_a_joint_plan(library, demo):
     np.testing.assert_allclose(q_end, plan.source.mean[-1], atol=1e-12)
     # decided a little before the wrist fully stopped: close to the prediction from the whole motion
     np.testing.assert_allclose(q_end, mean[-1], atol=0.01)
+
+
+def _speed_limits():
+    return np.full(7, 1.5)
+
+
+def test_a_replan_blends_in_with_continuous_position_and_velocity_within_limits():
+    from drake_skills.systems.trajectory_source import blend_plan, peak_speed_ratio
+
+    first = build_plan(_traj(1.0), HOME, LOWER, UPPER)
+    now = 1.8  # mid-motion: moving
+    q0, v0, _ = desired_at(first, HOME, now)
+    assert np.abs(v0).max() > 0.1
+    other = _traj(1.0, end=np.array([-0.6, 0.2, 0.5, -1.0, -0.3, 0.2, -0.4]))  # a different answer
+    plan = blend_plan(other, now, q0, v0, LOWER, UPPER, _speed_limits())
+    q1, v1, _ = desired_at(plan, HOME, now)
+    np.testing.assert_allclose(q1, q0, atol=1e-9)
+    np.testing.assert_allclose(v1, v0, atol=1e-6)
+    # no jump just after the switch: positions move at most v_max dt in dt = 1 ms
+    q2, _, _ = desired_at(plan, HOME, now + 1e-3)
+    assert np.abs(q2 - q1).max() <= 1.5 * 1e-3 + 1e-6
+    assert peak_speed_ratio(plan, _speed_limits()) <= 1.0 + 1e-6
+    ts = np.linspace(plan.start_time, plan.end_time, 300)
+    qs = np.stack([desired_at(plan, HOME, t)[0] for t in ts])
+    assert (qs >= LOWER).all() and (qs <= UPPER).all()
+    np.testing.assert_allclose(desired_at(plan, HOME, plan.end_time + 1)[0], other.mean[-1], atol=1e-6)
+
+
+def test_a_blend_that_would_be_too_fast_is_slowed_down():
+    from drake_skills.systems.trajectory_source import blend_plan, peak_speed_ratio
+
+    far = _traj(1.0, end=np.array([1.8, -1.8, 1.8, -1.8, 1.8, -1.8, 1.8]))
+    slow = np.full(7, 0.5)
+    plan = blend_plan(far, 1.0, HOME, np.zeros(7), LOWER, UPPER, slow)
+    assert peak_speed_ratio(plan, slow) <= 1.0 + 1e-6
+    assert plan.end_time > far.end_time  # stretched
+
+
+def test_a_withdrawn_trajectory_stops_the_robot_smoothly_and_holds():
+    from drake_skills.systems.trajectory_source import STOP_TIME, stop_plan
+
+    first = build_plan(_traj(1.0), HOME, LOWER, UPPER)
+    q0, v0, _ = desired_at(first, HOME, 1.8)
+    stop = stop_plan(1.8, q0, v0, LOWER, UPPER)
+    q1, v1, _ = desired_at(stop, HOME, 1.8)
+    np.testing.assert_allclose(q1, q0, atol=1e-9)
+    np.testing.assert_allclose(v1, v0, atol=1e-6)
+    qe, ve, _ = desired_at(stop, HOME, 1.8 + STOP_TIME)
+    np.testing.assert_allclose(ve, 0.0, atol=1e-9)
+    np.testing.assert_allclose(qe, q0 + 0.5 * STOP_TIME * v0, atol=1e-6)  # stops v0 T / 2 further on
+    # the source system does it when its input goes back to None
+    source = JointTrajectorySource(LOWER, UPPER, HOME)
+    ctx = source.CreateDefaultContext()
+    port = source.GetInputPort("robot_trajectory")
+    source.GetInputPort("measured_state").FixValue(ctx, np.concatenate([HOME, np.zeros(7)]))
+    scratch = ctx.Clone()
+
+    def step(t, value):
+        ctx.SetTime(t)
+        port.FixValue(ctx, value)
+        source.CalcForcedUnrestrictedUpdate(ctx, scratch.get_mutable_state())
+        ctx.SetAbstractState(0, scratch.get_abstract_state(0).get_value())
+
+    step(1.0, _traj(1.0))
+    step(1.8, None)
+    assert source.plan(ctx).source is None
+    ctx.SetTime(1.8 + STOP_TIME + 0.1)
+    np.testing.assert_allclose(source.GetOutputPort("desired_state").Eval(ctx)[7:], 0.0, atol=1e-9)

@@ -18,16 +18,20 @@ Calibration (Sec. 4.2.2)
     table height over the top), arrays of shape (T, 3). Every demonstration lies inside
     their bounding box by construction (the path's control points are kept inside it).
 Robot
-    IIWA7 joint angles (radians) from Drake inverse kinematics on a plant holding only
-    the robot: from :data:`~drake_skills.sim.models.HOME_Q` to the task's fixed grasp
-    pose (solved once per task and cached), then to a handover pose that follows the
-    person's final wrist position (``handover_distance`` toward the robot base), seeded
-    with the grasp solution. The joint trajectory is two minimum-jerk segments in joint
-    space (stopping at the grasp), starting shortly after the human starts.
+    IIWA7 joint angles (radians) from Drake inverse kinematics
+    (:mod:`drake_skills.sim.salad_robot`): from :data:`~drake_skills.sim.models.HOME_Q`
+    to the task's fixed grasp pose (solved once per task and cached), then to a handover
+    pose that follows the person's final wrist position, seeded with the grasp solution.
+    The joint trajectory is two minimum-jerk segments in joint space (stopping at the
+    grasp), starting shortly after the human starts.
 
 Randomness: every draw comes from ``np.random.default_rng`` seeded by
 ``(seed, subject index, stream, ...)``, so subject k's data does not depend on how
 many subjects or which tasks are generated, and the same seed gives the same bytes.
+
+A scenario sits above ``sim/``: it reads the scene of :mod:`drake_skills.sim.models` and
+the robot's inverse kinematics, and makes :class:`~drake_skills.data.demonstration.Demonstration`
+objects (``data/``, the bottom layer, imports nothing of it).
 """
 from __future__ import annotations
 
@@ -39,7 +43,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drake_skills.data.demonstration import Demonstration
-from drake_skills.promp.preprocessing import Workspace
+from drake_skills.data.workspace import Workspace
+from drake_skills.sim.models import IIWA7_JOINT_LIMITS, IIWA7_VELOCITY_LIMITS, load_scene_config
+from drake_skills.sim.salad_robot import salad_robot
 
 log = logging.getLogger(__name__)
 
@@ -187,8 +193,6 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 @functools.lru_cache(maxsize=1)
 def _scene():
-    from drake_skills.sim.models import load_scene_config
-
     return load_scene_config()
 
 
@@ -374,121 +378,6 @@ def plan_reach(subject: Subject, task: str, rng: np.random.Generator) -> ReachPl
 
 
 # --------------------------------------------------------------------------- robot
-class _RobotIK:
-    """Inverse kinematics of the IIWA7 alone, with cached grasp solutions."""
-
-    def __init__(self):
-        from drake_skills.sim.models import FLANGE_FRAME, HOME_Q, make_iiwa7_plant
-
-        cfg = _scene()
-        self.plant = make_iiwa7_plant(cfg.robot_base.transform())
-        self.flange = self.plant.GetFrameByName(FLANGE_FRAME)
-        self.home = np.array(HOME_Q)
-        self.base_xyz = np.asarray(cfg.robot_base.xyz, float)
-        self._grasp: dict[str, np.ndarray] = {}
-
-    def solve(self, p_WE: np.ndarray, *, pos_tol: float, seed: np.ndarray, R_WE=None,
-              axis_W: np.ndarray | None = None, theta_bound: float) -> np.ndarray | None:
-        """Joint angles (7,) putting the flange at p_WE, or None if IK fails.
-
-        Orientation: either the full rotation ``R_WE`` within ``theta_bound``, or only the
-        flange z axis within ``theta_bound`` of the unit vector ``axis_W``.
-        """
-        from pydrake.math import RotationMatrix
-        from pydrake.multibody.inverse_kinematics import InverseKinematics
-        from pydrake.solvers import Solve
-
-        from drake_skills.sim.models import IIWA7_JOINT_LIMITS
-
-        ik = InverseKinematics(self.plant)
-        W = self.plant.world_frame()
-        ik.AddPositionConstraint(self.flange, np.zeros(3), W, p_WE - pos_tol, p_WE + pos_tol)
-        if R_WE is not None:
-            ik.AddOrientationConstraint(W, R_WE, self.flange, RotationMatrix(), theta_bound)
-        else:
-            ik.AddAngleBetweenVectorsConstraint(W, axis_W, self.flange, np.array([0.0, 0.0, 1.0]),
-                                                0.0, theta_bound)
-        # keep 2 degrees off the joint limits (the SDF rounds them to 6 decimals, and a
-        # real controller needs room to track)
-        lower, upper = IIWA7_JOINT_LIMITS
-        margin = np.deg2rad(2.0)
-        ik.prog().AddBoundingBoxConstraint(lower + margin, upper - margin, ik.q())
-        # stay close to the seed: no jumps between IK branches
-        ik.prog().AddQuadraticErrorCost(np.eye(7), seed, ik.q())
-        result = Solve(ik.prog(), seed)
-        if not result.is_success():
-            return None
-        return np.asarray(result.GetSolution(ik.q()), float)
-
-    def grasp(self, task: str) -> np.ndarray:
-        """Cached joint angles (7,) of the task's grasp pose (2 mm, 2 degrees)."""
-        if task not in self._grasp:
-            X = _scene().tasks[task].grasp.transform()
-            q = self.solve(X.translation(), R_WE=X.rotation(), theta_bound=np.deg2rad(2.0), pos_tol=0.002,
-                           seed=self.home)
-            if q is None:
-                raise RuntimeError(f"inverse kinematics found no solution for the grasp pose of task {task!r}")
-            self._grasp[task] = q
-        return self._grasp[task]
-
-    def handover_position(self, task: str, wrist: np.ndarray) -> np.ndarray:
-        """Flange position (3,) of the handover for a final wrist position (3,)."""
-        cfg = _scene()
-        tcfg = cfg.tasks[task]
-        toward = self.base_xyz - wrist
-        toward[2] = 0.0
-        p = wrist + tcfg.handover_distance * _unit(toward) + np.array([0.0, 0.0, tcfg.handover_dz])
-        # keep the wrist centre (joint 6, 0.126 m behind the flange along the approach axis)
-        # in the band of horizontal distances the robot reaches comfortably
-        r_min, r_max = cfg.handover_radius
-        back = 0.126 * np.cos(np.deg2rad(tcfg.handover_tilt_deg))
-        d = p[:2] - self.base_xyz[:2]
-        r = float(np.linalg.norm(d))
-        p[:2] = self.base_xyz[:2] + d / r * np.clip(r, r_min + back, r_max + back)
-        return p
-
-    def handover_axis(self, task: str, p_WE: np.ndarray) -> np.ndarray:
-        """Unit approach axis (3,) of the flange at the handover point p_WE."""
-        tilt = np.deg2rad(_scene().tasks[task].handover_tilt_deg)
-        h = _unit(np.array([p_WE[0] - self.base_xyz[0], p_WE[1] - self.base_xyz[1], 0.0]))
-        return np.cos(tilt) * h + np.array([0.0, 0.0, -np.sin(tilt)])
-
-    def handover(self, task: str, wrist: np.ndarray) -> np.ndarray:
-        """Joint angles (7,) handing over near the final wrist position, seeded by the grasp."""
-        tcfg = _scene().tasks[task]
-        p = self.handover_position(task, wrist)
-        axis = self.handover_axis(task, p)
-        theta = np.deg2rad(tcfg.handover_tolerance_deg)
-        q_grasp = self.grasp(task)
-        for tol_scale, seed in ((1.0, q_grasp), (2.0, q_grasp), (2.0, self.home)):
-            q = self.solve(p, axis_W=axis, theta_bound=min(tol_scale * theta, np.pi / 2),
-                           pos_tol=0.005 * tol_scale, seed=seed)
-            if q is not None:
-                if tol_scale > 1.0:
-                    log.debug("handover IK of %s needed relaxed tolerances at %s", task, p)
-                return q
-        raise RuntimeError(f"inverse kinematics found no handover for task {task!r} at {np.round(p, 3).tolist()}")
-
-
-@functools.lru_cache(maxsize=1)
-def _robot_ik() -> _RobotIK:
-    return _RobotIK()
-
-
-def grasp_configuration(task: str) -> np.ndarray:
-    """IIWA7 joint angles, shape (7,), of the task's grasp pose (IK solved once, cached)."""
-    if task not in TASKS:
-        raise ValueError(f"unknown task {task!r}; tasks are {TASKS}")
-    return _robot_ik().grasp(task).copy()
-
-
-def handover_position(task: str, wrist) -> np.ndarray:
-    """Flange position (3,) of the handover for the person's final wrist position (3,)."""
-    if task not in TASKS:
-        raise ValueError(f"unknown task {task!r}; tasks are {TASKS}")
-    return _robot_ik().handover_position(task, np.asarray(wrist, float))
-
-
 def robot_motion(task: str, wrist_goal: np.ndarray, t_human: float,
                  rng: np.random.Generator) -> tuple[float, Callable[[np.ndarray], np.ndarray]]:
     """Plan the robot's joint trajectory home -> grasp -> handover.
@@ -512,9 +401,7 @@ def robot_motion(task: str, wrist_goal: np.ndarray, t_human: float,
     q_of_t : callable
         Maps times (T,) to joint angles (T, 7), radians.
     """
-    from drake_skills.sim.models import IIWA7_VELOCITY_LIMITS
-
-    ik = _robot_ik()
+    ik = salad_robot()
     q_grasp = ik.grasp(task)
     q_hand = ik.handover(task, wrist_goal)
     t_start = float(rng.uniform(0.1, 0.25))
@@ -544,8 +431,6 @@ def make_demonstration(subject: Subject, task: str, k: int, seed: int = 0) -> De
         ``t`` (T,) from 0 at 150 Hz, ``human`` (T, 3) wrist in metres, ``robot`` (T, 7)
         IIWA7 joints in radians; the hand holds still until the robot has arrived.
     """
-    from drake_skills.sim.models import IIWA7_JOINT_LIMITS
-
     rng = _rng(seed, subject.index, _STREAM_DEMO, TASKS.index(task), k)
     plan = plan_reach(subject, task, rng)
     wrist_goal = plan.position(np.array([plan.T_move]))[0]

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from drake_skills.data.demos import save_npz
-from drake_skills.data.salad import RATE_HZ, SLOPPY_SUBJECTS, TABLE_TOP_Z, TASKS, generate_subject, make_subject
+from drake_skills.scenario.salad import RATE_HZ, SLOPPY_SUBJECTS, TABLE_TOP_Z, TASKS, generate_subject, make_subject
 from drake_skills.sim.models import IIWA7_JOINT_LIMITS, IIWA7_VELOCITY_LIMITS
 
 
@@ -125,7 +125,7 @@ def test_generate_and_plot_commands_write_a_dataset_and_a_picture(tmp_path):
 
 def test_handover_ik_stays_off_the_joint_limits():
     """Regression: seed 1, subject 7, bowl 11 once put joint 1 on its limit and aborted generation."""
-    from drake_skills.data.salad import make_demonstration
+    from drake_skills.scenario.salad import make_demonstration
 
     lower, upper = IIWA7_JOINT_LIMITS
     d = make_demonstration(make_subject(7, seed=1), "bowl", 11, seed=1)

@@ -1,0 +1,366 @@
+"""Real human-robot interactions (``buetepage_hr.npz``): recognition, components, robot response, anticipation.
+
+Protocol (one *order* = one random permutation of the training interactions):
+
+1. Load the interactions with :func:`~drake_skills.data.interaction.load_interactions`
+   (the hand by default, the whole arm with ``columns="arm"``) and keep the source's
+   train/test split; the workspace is the bounding box of the training interactions'
+   human columns (the wrists, by default), the same for every interaction.
+2. Fold the training interactions into a fresh library (``InteractionSettings.library``,
+   default :class:`LibraryConfig`) in the order's permutation, following the task votes
+   of its components (:class:`~drake_skills.evaluation.labeled.LabeledLibrary`).
+3. Recognize every whole test interaction (``observed_fraction=1``): correct, wrong,
+   undecided or unknown against its task.
+4. For every test interaction recognized as a skill, the robot response error: the RMS
+   joint error (radians, over ``n_steps`` samples evenly spaced in time and all joints)
+   of ``predict_robot`` against the recorded robot trajectory, beside two baselines
+   evaluated on the same interactions: the recognized component's unconditioned mean,
+   and the mean robot trajectory of the training interactions of the *true* task (an
+   oracle on the label).
+5. Anticipation: every test interaction cut at true fractions of its path length (the
+   library's own arc length: normalized units, ``LibraryConfig.resample_tolerance``),
+   recognized **without** ``observed_fraction`` (the library estimates the phase):
+   correct / wrong / undecided / unknown and the estimated phase against the true
+   fraction.
+
+Figures are over orders x test interactions. Nothing here is tuned on the test split.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from drake_skills.data.demonstration import Demonstration
+from drake_skills.data.interaction import COLUMNS, load_interactions
+from drake_skills.data.workspace import Workspace
+from drake_skills.evaluation.common import EvalReport, Table, run_trials, trial_rng
+from drake_skills.evaluation.labeled import LabeledLibrary, outcome_fractions
+from drake_skills.library.incremental import LibraryConfig
+from drake_skills.promp.preprocessing import arc_length, resample_in_time, vertex_indices
+
+STREAM_INTERACTION = 7
+#: Recognition from the wrist alone in chenlx92/ipromps (Interaction ProMPs with phase
+#: estimation, 4 real handover tasks, leave-one-out), by observed fraction (issue 12).
+IPROMPS_WRIST = {0.1: 0.647, 0.3: 0.735, 0.5: 0.662}
+OUTCOMES = ("correct", "wrong", "undecided", "unknown")
+
+
+@dataclass
+class InteractionSettings:
+    """Settings of the interaction evaluation."""
+
+    #: The interactions file (layout of ``buetepage_hr.npz``).
+    data: str = ""
+    #: Human columns: "hand" (the wrist, columns 6:9) or "arm" (shoulder, elbow, hand: 0:9).
+    columns: str = "hand"
+    #: Random orders of the training interactions.
+    orders: int = 20
+    #: True observed fractions of the path for the anticipation table.
+    fractions: tuple[float, ...] = tuple(np.round(np.arange(1, 11) / 10, 2).tolist())
+    #: Samples (evenly spaced in time) on which the robot response error is measured.
+    n_steps: int = 100
+    #: Sampling rate assumed for the file (the source does not state it).
+    rate_hz: float = 100.0
+    #: Experiment seed (the orders).
+    seed: int = 0
+    #: Settings of every library (its workspace is replaced by the training bounding box).
+    library: LibraryConfig = field(default_factory=LibraryConfig)
+
+    def __post_init__(self):
+        if self.columns not in ("hand", "arm"):
+            raise ValueError(f"InteractionSettings.columns must be 'hand' or 'arm', got {self.columns!r}")
+        for name, lo in (("orders", 1), ("n_steps", 2)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or int(v) != v or v < lo:
+                raise ValueError(f"InteractionSettings.{name} must be an integer >= {lo}, got {v!r}")
+        f = np.asarray(self.fractions, float)
+        if f.ndim != 1 or not f.size or (f <= 0).any() or (f > 1).any():
+            raise ValueError(f"InteractionSettings.fractions must be in (0, 1], got {self.fractions!r}")
+        self.fractions = tuple(float(x) for x in f)
+        if not isinstance(self.library, LibraryConfig):
+            raise ValueError(f"InteractionSettings.library must be a LibraryConfig, got {type(self.library).__name__}")
+
+
+@dataclass(frozen=True, eq=False)
+class InteractionContext:
+    """What every order reads: the two splits, the workspace, the task-mean baseline, the settings."""
+
+    train: tuple[Demonstration, ...]
+    test: tuple[Demonstration, ...]
+    workspace: Workspace
+    #: Mean robot trajectory, shape (n_steps, D_r), of the training interactions of each task.
+    task_mean: dict
+    #: Each test interaction's robot trajectory at ``n_steps`` times, shape (n_steps, D_r).
+    test_robot: tuple[np.ndarray, ...]
+    settings: InteractionSettings
+
+    @classmethod
+    def of(cls, settings: InteractionSettings) -> "InteractionContext":
+        demos = load_interactions(settings.data, columns=COLUMNS[settings.columns], rate_hz=settings.rate_hz)
+        return cls.from_splits(demos.train, demos.test, settings)
+
+    @classmethod
+    def from_splits(cls, train, test, settings: InteractionSettings) -> "InteractionContext":
+        train, test = tuple(train), tuple(test)
+        if not train or not test:
+            raise ValueError(f"interactions '{settings.data}': need training and test interactions, got "
+                             f"{len(train)} and {len(test)}")
+        missing = [d.name for d in train + test if d.task is None or d.robot is None]
+        if missing:
+            raise ValueError(f"interactions '{settings.data}': every interaction needs a task and a robot "
+                             f"trajectory; {missing[:3]} lack one")
+        untaught = sorted({d.task for d in test} - {d.task for d in train})
+        if untaught:
+            raise ValueError(f"interactions '{settings.data}': test tasks {untaught} have no training interaction")
+        ws = workspace_of(train)
+        n = settings.n_steps
+        task_mean = {}
+        for task in dict.fromkeys(d.task for d in train):
+            task_mean[task] = np.mean([resample_in_time(d.t, d.robot, n) for d in train if d.task == task], axis=0)
+        return cls(train, test, ws, task_mean, tuple(resample_in_time(d.t, d.robot, n) for d in test), settings)
+
+
+def workspace_of(demos) -> Workspace:
+    """The bounding box of the human positions of ``demos`` (the paper's normalization, Eq. 14)."""
+    H = np.concatenate([d.human for d in demos])
+    return Workspace(H.min(axis=0), H.max(axis=0))
+
+
+def prefix_end(human: np.ndarray, workspace: Workspace, fraction: float, tolerance: float) -> int:
+    """How many samples of ``human`` cover ``fraction`` of its path length, as the library measures it.
+
+    The path is the library's: normalized by ``workspace`` (Eq. 14) and counted only
+    between vertices more than ``tolerance`` apart
+    (:func:`~drake_skills.promp.preprocessing.path_vertices`). Returns the number of
+    leading samples up to and including the first vertex at or past ``fraction`` of
+    the whole path (at least 2).
+    """
+    y = workspace.normalize(human)
+    idx = vertex_indices(y, tolerance)
+    _, s = arc_length(y, tolerance)
+    k = int(np.searchsorted(s, fraction * s[-1] * (1 - 1e-12)))
+    return max(2, int(idx[min(k, len(idx) - 1)]) + 1)
+
+
+@dataclass(frozen=True, eq=False)
+class InteractionTrial:
+    """One order's results, per test interaction (arrays over the test split in file order)."""
+
+    n_components: int
+    #: CORRECT, WRONG, UNKNOWN or UNDECIDED per test interaction.
+    outcomes: np.ndarray
+    #: Smallest squared Mahalanobis distance to a component, and its chi-square threshold.
+    d2_min: np.ndarray
+    d2_threshold: np.ndarray
+    #: RMS joint error (rad) of the conditioned response, the component mean and the task mean
+    #: (NaN where the interaction was not recognized as a skill).
+    err_conditioned: np.ndarray
+    err_component: np.ndarray
+    err_task_mean: np.ndarray
+    #: Anticipation, shape (n_test, n_fractions): outcomes and estimated phases (NaN when unknown).
+    prefix_outcomes: np.ndarray
+    prefix_phases: np.ndarray
+    #: Label of every component (majority task of what it absorbed), in id order.
+    component_tasks: tuple
+
+
+def _rms(a, b) -> float:
+    return float(np.sqrt(np.mean((np.asarray(a) - np.asarray(b)) ** 2)))
+
+
+def interaction_trial(ctx: InteractionContext, index: int) -> InteractionTrial:
+    """One random order: learn the training split, then score the test split (see the module)."""
+    from drake_skills.library.novelty import chi2_ppf
+
+    s = ctx.settings
+    cfg = replace(s.library, workspace=ctx.workspace)
+    rng = trial_rng(s.seed, index, STREAM_INTERACTION)
+    lab = LabeledLibrary(cfg)
+    for j in rng.permutation(len(ctx.train)):
+        lab.teach(ctx.train[j])
+    lib = lab.library
+    n_test, n_f = len(ctx.test), len(s.fractions)
+    outcomes = np.empty(n_test, int)
+    d2_min, d2_thr = np.empty(n_test), np.empty(n_test)
+    errs = np.full((3, n_test), np.nan)
+    p_out, p_phase = np.empty((n_test, n_f), int), np.full((n_test, n_f), np.nan)
+    Phi_r = cfg.basis_robot.phi_uniform(s.n_steps)
+    for i, d in enumerate(ctx.test):
+        rec = lib.recognize(d.human, observed_fraction=1.0)
+        outcomes[i] = lab.outcome(rec.component, d.task, rec.status)
+        j = int(np.argmin(rec.mahalanobis_sq))
+        d2_min[i], d2_thr[i] = rec.mahalanobis_sq[j], chi2_ppf(cfg.novelty_quantile, int(np.max(rec.dof)))
+        if rec.status == "skill":
+            mean, _ = lib.predict_robot(d.human, observed_fraction=1.0, component=rec.component, n_steps=s.n_steps)
+            c = lib.component(rec.component)
+            prior = Phi_r @ np.asarray(c.mean[c.n_human:]).reshape(lib.dim_robot_, -1).T
+            errs[:, i] = (_rms(mean, ctx.test_robot[i]), _rms(prior, ctx.test_robot[i]),
+                          _rms(ctx.task_mean[d.task], ctx.test_robot[i]))
+        for k, f in enumerate(s.fractions):
+            end = prefix_end(d.human, ctx.workspace, f, cfg.resample_tolerance)
+            r = lib.recognize(d.human[:end])
+            p_out[i, k] = lab.outcome(r.component, d.task, r.status)
+            if r.status == "skill":
+                p_phase[i, k] = r.phase
+    labels = tuple(lab.label_of(c.id) for c in lib.components)
+    return InteractionTrial(lib.n_components, outcomes, d2_min, d2_thr, errs[0], errs[1], errs[2], p_out, p_phase,
+                            labels)
+
+
+def _fractions(outcomes) -> list[float]:
+    c, w, u, d = outcome_fractions(outcomes)
+    return [c, w, d, u]  # in OUTCOMES order
+
+
+def _fig(rep_rows, fractions, tasks, err_by_task):
+    import matplotlib.pyplot as plt
+
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 3.8))
+    a = np.array(rep_rows)  # (n_fractions, 4)
+    colors = ("tab:green", "tab:red", "tab:orange", "0.6")
+    bottom = np.zeros(len(fractions))
+    width = 0.07
+    for j, (name, c) in enumerate(zip(OUTCOMES, colors)):
+        ax.bar(fractions, a[:, j], width, bottom=bottom, color=c, label=name)
+        bottom += a[:, j]
+    fx = sorted(IPROMPS_WRIST)
+    ax.plot(fx, [IPROMPS_WRIST[f] for f in fx], "kD", label="ipromps, wrist only (correct)")
+    ax.set_xlabel("true fraction of the path observed")
+    ax.set_ylabel("fraction of test interactions x orders")
+    ax.set_title("Anticipation: recognize(prefix), phase estimated", fontsize=9)
+    ax.set_ylim(0, 1.05)
+    ax.legend(fontsize=7, loc="lower right")
+    x = np.arange(len(tasks))
+    for j, (name, c) in enumerate((("conditioned (predict_robot)", "tab:green"),
+                                   ("recognized component's mean", "tab:blue"),
+                                   ("task mean (oracle label)", "0.5"))):
+        ax2.bar(x + (j - 1) * 0.27, [err_by_task[t][j] for t in tasks], 0.27, color=c, label=name)
+    ax2.set_xticks(x, tasks, fontsize=8)
+    ax2.set_ylabel("robot RMS joint error (rad)")
+    ax2.set_title("Robot response on recognized test interactions", fontsize=9)
+    ax2.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def evaluate_interaction(settings: InteractionSettings, *, workers: int = 1, progress: bool = True,
+                         figures: bool = True, context: InteractionContext | None = None) -> EvalReport:
+    """Run the interaction evaluation and return its tables, figure and summary.
+
+    Parameters
+    ----------
+    settings : InteractionSettings
+    workers : int
+        Processes for the orders (results do not depend on it).
+    progress : bool
+        tqdm progress bar on stderr.
+    figures : bool
+        Also draw the figure.
+    context : InteractionContext, optional
+        Already loaded splits (``settings.data`` is then only a label); default: load
+        ``settings.data``.
+
+    Returns
+    -------
+    EvalReport
+        Tables ``recognition``, ``components``, ``response``, ``anticipation``,
+        ``test_interactions``; figure ``interaction``.
+    """
+    s = settings
+    ctx = context if context is not None else InteractionContext.of(s)
+    trials = run_trials(interaction_trial, range(s.orders), ctx, workers=workers, desc="interaction: orders",
+                        progress=progress)
+    tasks = list(ctx.task_mean)
+    test_tasks = np.array([d.task for d in ctx.test])
+    out = np.stack([t.outcomes for t in trials])  # (orders, n_test)
+    K = np.array([t.n_components for t in trials])
+
+    rows = []
+    for task in tasks + ["all"]:
+        m = np.ones(len(ctx.test), bool) if task == "all" else test_tasks == task
+        rows.append([task, int(m.sum()), *_fractions(out[:, m])])
+    recognition = Table(["task", "test interactions", *OUTCOMES], rows,
+                        caption=(f"Whole test interactions recognized (observed_fraction=1) by a library learned from "
+                                 f"the {len(ctx.train)} training interactions, fractions over {s.orders} random "
+                                 f"orders x test interactions; human columns: {s.columns}."))
+    ks = sorted(set(K.tolist()))
+    components = Table(["components", *map(str, ks), "mean"],
+                       [["fraction of orders", *[float(np.mean(K == k)) for k in ks], float(K.mean())]],
+                       caption=f"Components after all {len(ctx.train)} training interactions "
+                               f"({len(tasks)} tasks), over {s.orders} orders.")
+
+    E = np.stack([np.stack([t.err_conditioned, t.err_component, t.err_task_mean]) for t in trials])  # (o, 3, n)
+    rows, err_by_task = [], {}
+    for task in tasks + ["all"]:
+        m = np.ones(len(ctx.test), bool) if task == "all" else test_tasks == task
+        e = E[:, :, m].transpose(1, 0, 2).reshape(3, -1)
+        ok = np.isfinite(e[0])
+        means = [float(e[j, ok].mean()) if ok.any() else float("nan") for j in range(3)]
+        err_by_task[task] = means
+        all_task_mean = [_rms(ctx.task_mean[d.task], r) for d, r in zip(ctx.test, ctx.test_robot) if
+                         task in ("all", d.task)]
+        rows.append([task, int(ok.sum()), *means, float(np.mean(all_task_mean))])
+    response = Table(["task", "executed", "conditioned (rad)", "component mean (rad)", "task mean, oracle (rad)",
+                      "task mean, all test (rad)"], rows,
+                     caption=("Robot response error: RMS joint error over 100 time steps and all joints against "
+                              "the recorded robot, on the test interactions recognized as a skill (executed, "
+                              "over orders); baselines on the same interactions: the recognized component's "
+                              "unconditioned mean and the mean of the training interactions of the true task. "
+                              "The last column is the task mean on every test interaction."))
+
+    P = np.stack([t.prefix_outcomes for t in trials])  # (orders, n_test, n_f)
+    Ph = np.stack([t.prefix_phases for t in trials])
+    rows, frac_rows = [], []
+    for k, f in enumerate(s.fractions):
+        fr = _fractions(P[:, :, k])
+        frac_rows.append(fr)
+        ph = Ph[:, :, k]
+        ph = ph[np.isfinite(ph)]
+        est = float(ph.mean()) if ph.size else float("nan")
+        err = float(np.mean(np.abs(ph - f))) if ph.size else float("nan")
+        ref = IPROMPS_WRIST.get(round(f, 2))
+        rows.append([f, *fr, est, err, "-" if ref is None else ref])
+    anticipation = Table(["observed", *OUTCOMES, "estimated phase (mean)", "phase error (mean |est - true|)",
+                          "ipromps wrist-only correct"], rows,
+                         caption=("Each test interaction cut at a true fraction of its path length (the library's "
+                                  "arc length: normalized units, resample_tolerance), recognized WITHOUT "
+                                  "observed_fraction (the phase is estimated). Phase over 'skill' answers. "
+                                  "ipromps: chenlx92/ipromps, 4 real handover tasks, leave-one-out, wrist only."))
+
+    D2 = np.stack([t.d2_min for t in trials])
+    thr = np.stack([t.d2_threshold for t in trials])
+    rows = [[d.name, d.task, *_fractions(out[:, i]), float(np.median(D2[:, i])), float(np.median(thr[:, i]))]
+            for i, d in enumerate(ctx.test)]
+    per_test = Table(["interaction", "task", *OUTCOMES, "median smallest d^2", "threshold"],
+                     rows, caption="Per test interaction, over orders: the squared Mahalanobis distance to the "
+                                   "closest component against the novelty threshold (chi-square quantile).")
+
+    rep = EvalReport("Real human-robot interactions", {
+        "recognition": recognition, "components": components, "response": response,
+        "anticipation": anticipation, "test_interactions": per_test})
+    c, w, d_, u = _fractions(out)
+    allr = err_by_task["all"]
+    rep.summary = {
+        "settings": asdict(s) | {"library": s.library.dict()},
+        "n_train": len(ctx.train), "n_test": len(ctx.test), "tasks": tasks,
+        "correct": c, "wrong": w, "undecided": d_, "unknown": u,
+        "components_mean": float(K.mean()), "components": K.tolist(),
+        "response_error_conditioned": allr[0], "response_error_component_mean": allr[1],
+        "response_error_task_mean": allr[2],
+        "anticipation": {str(f): dict(zip(OUTCOMES, fr)) for f, fr in zip(s.fractions, frac_rows)},
+        "goals": {"correct >= 0.95": c >= 0.95, "wrong <= 0.02": w <= 0.02,
+                  "4 <= components <= 6": bool(4 <= K.mean() <= 6),
+                  "conditioned response below task mean": bool(allr[0] < allr[2])},
+    }
+    if figures:
+        rep.figures = {"interaction": _fig(frac_rows, np.array(s.fractions), tasks, err_by_task)}
+    return rep
+
+
+def default_data_path() -> Path:
+    """``buetepage_hr.npz`` in the shared data folder (see :func:`~drake_skills.data.interaction.shared_data_path`)."""
+    from drake_skills.data.interaction import shared_data_path
+
+    return shared_data_path("buetepage_hr.npz")

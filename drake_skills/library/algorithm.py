@@ -1,0 +1,477 @@
+"""Algorithm 1 on a shared, learned scale: one demonstration's weights in, the new library out.
+
+:func:`fold_in` is the whole step of ``SkillLibrary.partial_fit``:
+
+1. count the demonstration in the totals the prior scale comes from
+   (:class:`~drake_skills.library.scale.SharedScale`);
+2. novelty: the squared Mahalanobis distance of ``w_h`` to every component under the
+   shared gating covariance ``Sigma`` (predictive ``Sigma (1 + 1/s_k)``), tested by the
+   rule of :mod:`drake_skills.library.novelty`;
+3. update: a new component (Eq. 9), or every component that explains the motion by its
+   responsibility (Eqs. 5-8, exact running moments), and the nearer of its two
+   sub-clusters;
+4. merge (Eqs. 10-11): pairs involving a changed component whose two-sample distance
+   ``|mu_i - mu_j|^2_Sigma / (1/s_i + 1/s_j)`` is below the merge threshold; a merged
+   component keeps the two it came from as its sub-clusters;
+5. split: a changed component whose two sub-clusters have grown apart beyond the split
+   threshold becomes two again (so a merge made on an early, too-wide scale is undone
+   once the scale has been learned);
+6. delete outliers by age and support.
+
+Every distance is computed on the whitened human means at once (one matrix product),
+so a step costs O(K h) arithmetic plus the work on the few changed components.
+Nothing here mutates its arguments; the library commits a :class:`Step` in one
+assignment, so a failed step leaves it as it was.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from drake_skills.library.novelty import NoveltyRule
+from drake_skills.promp.gaussian import logsumexp
+from drake_skills.library.scale import Cluster, SharedScale, gating_covariance
+from drake_skills.library.views import Responsibilities
+
+_LOG_2PI = np.log(2.0 * np.pi)
+#: Components whose responsibility reaches this are updated (and reported in ``Update.updated``).
+UPDATED_RESPONSIBILITY = 1e-3
+
+
+@dataclass(frozen=True, eq=False)
+class ComponentModel:
+    """One skill: the moments of its demonstrations and of its two sub-clusters.
+
+    Attributes
+    ----------
+    id : int
+        Stable identifier (ids are never reused).
+    created : int
+        Index of the demonstration that created it (its age is ``n_seen - created``).
+    cluster : Cluster
+        Moments of the stacked weights ``[w_h; w_r]`` of its demonstrations.
+    subclusters : tuple of (Cluster, Cluster or None)
+        A split of its demonstrations in two (the two components it was merged from,
+        or its first demonstration and the ones nearer to the second); their union is
+        ``cluster``.
+    """
+
+    id: int
+    created: int
+    cluster: Cluster
+    subclusters: tuple
+
+    @property
+    def support(self) -> float:
+        return self.cluster.support
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self.cluster.mean
+
+
+@dataclass(frozen=True, eq=False)
+class Components:
+    """The components with their gating data stacked for vectorized scoring.
+
+    Immutable: a step of :func:`fold_in` builds a new one (its arrays are read-only).
+
+    Attributes
+    ----------
+    items : tuple of ComponentModel
+    means_h : array, shape (K, h)
+        Human (gating) means, row k for ``items[k]``.
+    support : array, shape (K,)
+    created : array, shape (K,)
+    sub_means_h : array, shape (K, 2, h)
+        Human means of the two sub-clusters (the second 0 while it is empty).
+    sub_support : array, shape (K, 2)
+        Their supports (0 for an empty one).
+    id_array : array of int, shape (K,)
+        ``items[k].id``.
+    path_length : array, shape (K,)
+        Mean normalized path length of each component's demonstrations.
+    """
+
+    items: tuple = ()
+    means_h: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    support: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    created: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    sub_means_h: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 0)))
+    sub_support: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    id_array: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    path_length: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @property
+    def path_lengths(self) -> np.ndarray:
+        """(K,) mean path lengths of the components' demonstrations."""
+        return self.path_length
+
+    @classmethod
+    def of(cls, items: Sequence[ComponentModel], n_human: int) -> "Components":
+        items = tuple(items)
+        rows = [_rows(c, n_human) for c in items]
+        K = len(items)
+        if K:
+            means, support, created, sub_means, sub_support, ids, paths = (np.array(x) for x in zip(*rows))
+        else:
+            means, support, created = np.zeros((0, n_human)), np.zeros(0), np.zeros(0, dtype=np.int64)
+            sub_means, sub_support, ids, paths = np.zeros((0, 2, n_human)), np.zeros((0, 2)), np.zeros(0), np.zeros(0)
+        return cls._frozen(items, means.reshape(K, n_human), support.astype(float), created.astype(np.int64),
+                           sub_means.reshape(K, 2, n_human), sub_support.reshape(K, 2), ids.astype(np.int64),
+                           paths.astype(float))
+
+    @classmethod
+    def _frozen(cls, items, *arrays) -> "Components":
+        for a in arrays:
+            a.setflags(write=False)
+        return cls(items, *arrays)
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    @cached_property
+    def ids(self) -> tuple[int, ...]:
+        return tuple(int(i) for i in self.id_array)
+
+    def index(self, component_id: int) -> int:
+        """Row of the component with this id (KeyError if there is none)."""
+        hit = np.flatnonzero(self.id_array == component_id)
+        if not hit.size:
+            raise KeyError(component_id)
+        return int(hit[0])
+
+
+def _rows(c: ComponentModel, h: int):
+    """The stacked data of one component: mean, support, created, sub-cluster means and supports, id, path length."""
+    a, b = c.subclusters
+    sm = np.zeros((2, h))
+    ss = np.zeros(2)
+    sm[0], ss[0] = a.mean[:h], a.support
+    if b is not None:
+        sm[1], ss[1] = b.mean[:h], b.support
+    return c.cluster.mean[:h], c.cluster.support, c.created, sm, ss, c.id, c.cluster.path_length
+
+
+class _Work:
+    """A mutable working copy of the components during one step (private to :func:`fold_in`).
+
+    The arrays are copied once into buffers with spare rows, so that appending a
+    component (creation, split) writes one row instead of copying all K; removing
+    (merge, deletion) compacts them. :meth:`freeze` hands the buffers to a new
+    :class:`Components` (this object is not used after that).
+    """
+
+    def __init__(self, comps: Components, h: int):
+        K = len(comps.items)
+        self.items = list(comps.items)
+        self.h = h
+        cap = K + 4
+        self._means = _grown(comps.means_h, cap)
+        self._support = _grown(comps.support, cap)
+        self._created = _grown(comps.created, cap)
+        self._sub_means = _grown(comps.sub_means_h, cap)
+        self._sub_support = _grown(comps.sub_support, cap)
+        self._ids = _grown(comps.id_array, cap)
+        self._paths = _grown(comps.path_length, cap)
+        self.n = K
+
+    # views of the current rows
+    @property
+    def means_h(self) -> np.ndarray:
+        return self._means[:self.n]
+
+    @property
+    def support(self) -> np.ndarray:
+        return self._support[:self.n]
+
+    @property
+    def created(self) -> np.ndarray:
+        return self._created[:self.n]
+
+    @property
+    def sub_means_h(self) -> np.ndarray:
+        return self._sub_means[:self.n]
+
+    @property
+    def sub_support(self) -> np.ndarray:
+        return self._sub_support[:self.n]
+
+    def _buffers(self) -> tuple:
+        return self._means, self._support, self._created, self._sub_means, self._sub_support, self._ids, self._paths
+
+    def set(self, i: int, c: ComponentModel) -> None:
+        self.items[i] = c
+        for buf, row in zip(self._buffers(), _rows(c, self.h)):
+            buf[i] = row
+
+    def append(self, c: ComponentModel) -> None:
+        if self.n == self._means.shape[0]:
+            cap = 2 * self.n + 4
+            (self._means, self._support, self._created, self._sub_means, self._sub_support, self._ids,
+             self._paths) = (_grown(a[:self.n], cap) for a in self._buffers())
+        self.items.append(None)
+        self.n += 1
+        self.set(self.n - 1, c)
+
+    def remove(self, idx) -> None:
+        keep = np.ones(self.n, bool)
+        keep[np.atleast_1d(np.asarray(idx, dtype=int))] = False
+        self.items = [c for c, k in zip(self.items, keep) if k]
+        n = int(keep.sum())
+        for a in self._buffers():
+            a[:n] = a[:self.n][keep]
+        self.n = n
+
+    def index(self, cid: int) -> int:
+        hit = np.flatnonzero(self._ids[:self.n] == cid)
+        if not hit.size:
+            raise KeyError(cid)
+        return int(hit[0])
+
+    def freeze(self) -> Components:
+        return Components._frozen(tuple(self.items), *(a[:self.n] for a in self._buffers()))
+
+
+def _grown(a: np.ndarray, rows: int) -> np.ndarray:
+    """A writable copy of ``a`` with ``rows`` rows (the first ``len(a)`` are ``a``)."""
+    out = np.empty((rows,) + a.shape[1:], dtype=a.dtype)
+    out[:a.shape[0]] = a
+    return out
+
+
+@dataclass(frozen=True)
+class Metric:
+    """The gating metric: ``Sigma`` (h, h), the inverse of its Cholesky factor, its log-determinant, the factor."""
+
+    cov: np.ndarray
+    inv_chol: np.ndarray
+    logdet: float
+    chol: np.ndarray | None = None
+
+    @classmethod
+    def of(cls, cov: np.ndarray) -> "Metric":
+        L = np.linalg.cholesky(cov)
+        return cls(cov, np.linalg.inv(L), float(2.0 * np.sum(np.log(np.diag(L)))), L)
+
+    def whiten(self, x: np.ndarray) -> np.ndarray:
+        """``L^{-1} x`` for rows of ``x`` (n, h) or one (h,)."""
+        return x @ self.inv_chol.T
+
+
+def gating_metric(scale: SharedScale, n_human: int, config) -> Metric:
+    """The :class:`Metric` of the shared gating covariance of ``scale`` (see :mod:`~drake_skills.library.scale`)."""
+    return Metric.of(gating_covariance(scale, n_human, prior_scale=config.prior_scale,
+                                       prior_strength=config.prior_strength, shrinkage=config.shrinkage,
+                                       prior_floor=config.prior_floor))
+
+
+def gating_scores(w_h: np.ndarray, comps: Components, metric: Metric,
+                  whitened: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``log p(w_h | k)`` and the squared Mahalanobis distance ``d^2_k``, shapes (K,).
+
+    The predictive covariance of component k is ``Sigma (1 + 1/s_k)`` (the shared
+    within-skill covariance plus the uncertainty of the component's mean).
+    ``whitened``: ``metric.whiten(comps.means_h)`` if already known (K, h).
+    """
+    h = w_h.shape[0]
+    if not len(comps):
+        return np.zeros(0), np.zeros(0)
+    inflate = 1.0 + 1.0 / comps.support
+    Z = metric.whiten(comps.means_h) if whitened is None else whitened
+    diff = Z - metric.whiten(w_h)
+    d2 = np.einsum("ij,ij->i", diff, diff) / inflate
+    logp = -0.5 * (h * _LOG_2PI + metric.logdet + h * np.log(inflate) + d2)
+    return logp, d2
+
+
+def responsibilities(log_likelihoods: np.ndarray, support: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
+    """p(k | w_h) (Eq. 5) with priors ``alpha_k = s_k / sum_j s_j``; components outside ``mask`` get 0."""
+    a = log_likelihoods + np.log(support / support.sum())
+    if mask is not None:
+        a = np.where(mask, a, -np.inf)
+    if not np.isfinite(a).any():
+        return np.zeros_like(a)
+    return np.exp(a - logsumexp(a))
+
+
+def two_sample_d2(whitened: np.ndarray, support: np.ndarray, i: int) -> np.ndarray:
+    """``|mu_i - mu_j|^2_Sigma / (1/s_i + 1/s_j)`` for every j (inf for j = i), shape (K,)."""
+    diff = whitened - whitened[i]
+    d2 = np.einsum("ij,ij->i", diff, diff) / (1.0 / support + 1.0 / support[i])
+    d2[i] = np.inf
+    return d2
+
+
+@dataclass(frozen=True, eq=False)
+class Step:
+    """What :func:`fold_in` did: the new components and scale, and what to report and record."""
+
+    components: Components
+    scale: SharedScale
+    next_id: int
+    #: Component that explained the demonstration best before the update (None if novel).
+    recognized: int | None
+    created: tuple[int, ...]
+    updated: tuple[int, ...]
+    merged: tuple[tuple[int, int], ...]
+    #: (kept, new) id pairs: component ``kept`` split and its other half became ``new``.
+    split: tuple[tuple[int, int], ...]
+    deleted: tuple[int, ...]
+    #: Component id -> responsibility, for every component before the update (empty if novel).
+    responsibilities: Mapping
+    #: Component id -> index (0 or 1) of the sub-cluster the demonstration joined.
+    subcluster: dict
+    history: tuple[dict, ...]
+
+
+def _new_component(cid: int, created: int, w, duration: float, path_length: float) -> ComponentModel:
+    cl = Cluster.of_sample(w, duration, path_length)
+    return ComponentModel(cid, created, cl, (cl, None))
+
+
+def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: float, path_length: float, *,
+            n_human: int, config, rule: NoveltyRule, next_id: int, demo_index: int, fit_residual: float = 0.0) -> Step:
+    """Algorithm 1 for one demonstration with stacked weights ``w`` (d,) = ``[w_h; w_r]``.
+
+    Parameters
+    ----------
+    comps : Components
+        Before the demonstration.
+    scale : SharedScale
+        Before the demonstration.
+    w : array, shape (d,)
+    duration : float
+        Seconds.
+    path_length : float
+        Length of the normalized human path.
+    n_human : int
+        h, the number of leading human weights in ``w``.
+    config : LibraryConfig
+    rule : NoveltyRule
+    next_id : int
+        Id of a component created now.
+    demo_index : int
+        Index of the demonstration in the stream; ages are counted from it.
+    fit_residual : float
+        Mean squared residual of the demonstration's human path around its basis fit.
+    """
+    h = n_human
+    work = _Work(comps, h)
+    scale = scale.count(w, fit_residual)
+    created, updated, merged, split, deleted = [], [], [], [], []
+    history: list[dict] = []
+    resp: Mapping = {}
+    subs: dict = {}
+    recognized = None
+    changed: set[int] = set()
+
+    # 1-2. novelty against the scale learned so far (totals including this demonstration)
+    novel = True
+    if len(work.items):
+        metric = gating_metric(scale, h, config)
+        logp, d2 = gating_scores(w[:h], comps, metric)
+        fits = ~rule.novel(logp, d2, h)
+        novel = not fits.any()
+    # 3. update
+    if novel:
+        work.append(_new_component(next_id, demo_index, w, duration, path_length))
+        created.append(next_id)
+        changed.add(next_id)
+        history.append({"event": "created", "id": next_id, "demo": demo_index})
+        next_id += 1
+    else:
+        lam = responsibilities(logp, comps.support, fits)
+        recognized = comps.items[int(np.argmax(lam))].id
+        resp = Responsibilities(comps.id_array, lam)
+        zw = metric.whiten(w[:h])
+        for i in np.flatnonzero(lam >= UPDATED_RESPONSIBILITY):
+            c, l = comps.items[i], float(lam[i])
+            cluster, g = c.cluster.add(w, l, duration, path_length)
+            scale = scale.with_scatter(g, +1.0, l)
+            a, b = c.subclusters
+            if b is None:
+                j, b = 1, Cluster.of_sample(w, duration, path_length, support=l)
+            else:
+                da = metric.whiten(a.mean[:h]) - zw
+                db = metric.whiten(b.mean[:h]) - zw
+                j = int(db @ db < da @ da)
+                if j == 0:
+                    a = a.add(w, l, duration, path_length)[0]
+                else:
+                    b = b.add(w, l, duration, path_length)[0]
+            work.set(int(i), ComponentModel(c.id, c.created, cluster, (a, b)))
+            updated.append(c.id)
+            subs[c.id] = j
+            changed.add(c.id)
+
+    # 4. merge, starting from what changed (Eqs. 10-11)
+    while len(work.items) > 1 and changed:
+        metric = gating_metric(scale, h, config)
+        Z = metric.whiten(work.means_h)
+        best = None
+        for cid in sorted(changed):
+            i = work.index(cid)
+            d2m = two_sample_d2(Z, work.support, i)
+            if config.merge_min_age > 0:  # the paper's v_min^merge: the older of the two must be past it
+                ages = (demo_index + 1) - np.minimum(work.created, work.created[i])
+                d2m = np.where(ages > config.merge_min_age, d2m, np.inf)
+            score = rule.merge_scores(d2m, np.maximum(work.support, work.support[i]),
+                                      1.0 / work.support + 1.0 / work.support[i], metric.logdet, h)
+            j = int(np.argmin(score))
+            if score[j] < 1.0 and (best is None or score[j] < best[0]):
+                best = (float(score[j]), i, j)
+        if best is None:
+            break
+        _, i, j = best
+        a, b = work.items[i], work.items[j]
+        keep, gone = (a, b) if (a.support, -a.id) >= (b.support, -b.id) else (b, a)
+        pooled, g = keep.cluster.pool(gone.cluster)
+        scale = scale.with_scatter(g, +1.0, 1.0)
+        new = ComponentModel(keep.id, min(keep.created, gone.created), pooled, (keep.cluster, gone.cluster))
+        work.set(work.index(keep.id), new)
+        work.remove(work.index(gone.id))
+        merged.append((keep.id, gone.id))
+        history.append({"event": "merged", "into": keep.id, "absorbed": gone.id, "demo": demo_index})
+        changed = (changed - {gone.id}) | {keep.id}
+
+    # 5. split a component whose halves have grown apart (all components: the scale may
+    #    have shrunk under one that did not change)
+    if len(work.items):
+        metric = gating_metric(scale, h, config)
+        sa, sb = work.sub_support[:, 0], work.sub_support[:, 1]
+        both = sb > 0
+        if both.any():
+            dz = metric.whiten(work.sub_means_h[:, 0] - work.sub_means_h[:, 1])
+            d2s = np.where(both, np.einsum("ij,ij->i", dz, dz) / (1.0 / sa + 1.0 / np.where(both, sb, 1.0)), 0.0)
+            for i in np.flatnonzero(rule.splits(d2s, h) & both):
+                c = work.items[int(i)]
+                a, b = c.subclusters
+                g = np.sqrt(a.support * b.support / c.support) * (a.mean - b.mean)
+                scale = scale.with_scatter(g, -1.0, -1.0)
+                # the first sub-cluster keeps the id (after a merge: the kept component's own half)
+                work.set(int(i), ComponentModel(c.id, c.created, a, (a, None)))
+                work.append(ComponentModel(next_id, c.created, b, (b, None)))
+                split.append((c.id, next_id))
+                history.append({"event": "split", "id": c.id, "new": next_id, "demo": demo_index})
+                next_id += 1
+
+    # 6. delete outliers: past their deletion age with too little support
+    K = len(work.items)
+    n_seen = demo_index + 1
+    min_age = config.delete_min_age * max(1.0, K / 5.0)
+    ages = n_seen - work.created
+    gone_idx = np.flatnonzero((ages > min_age) & (work.support <= config.delete_min_support))
+    for i in gone_idx:
+        c = work.items[int(i)]
+        scale = scale.with_scatter(c.cluster.factor, -1.0, -(c.support - 1.0))
+        deleted.append(c.id)
+        history.append({"event": "deleted", "id": c.id, "demo": demo_index, "age": int(ages[i]),
+                        "support": round(float(c.support), 6)})
+    if len(gone_idx):
+        work.remove(gone_idx)
+    return Step(work.freeze(), scale, next_id, recognized, tuple(created), tuple(updated), tuple(merged),
+                tuple(split), tuple(deleted), resp, subs, tuple(history))

@@ -1,0 +1,218 @@
+"""``LibraryConfig``: the hyperparameters of the skill library, named as in the paper.
+
+A config dataclass is its YAML schema: Drake's ``yaml_load_typed`` reads it (alone, or
+as ``SimConfig.library``), so this module does not use ``from __future__ import
+annotations`` (the loader reads the real field types) and every field type is one the
+loader knows (numbers, strings, lists, ``Optional`` of a plain dataclass).
+"""
+# No "from __future__ import annotations": yaml_load_typed reads the real field types.
+
+from dataclasses import dataclass, field, fields
+from typing import Optional
+
+import numpy as np
+
+from drake_skills.data.workspace import Workspace
+from drake_skills.promp.basis import GaussianBasis
+
+#: The two forms of the novelty, "unknown" and merge tests (see :mod:`drake_skills.library.novelty`).
+NOVELTY_TESTS = ("chi2", "loglik")
+
+#: Settings of the paper's fixed scale that the learned shared scale replaced (library
+#: files of schema <= 2 hold them; storage drops them from such files).
+RETIRED_FIELDS = ("sigma_init_human", "sigma_init_robot", "gating_floor", "fast_forgetting")
+
+
+@dataclass
+class WorkspaceBounds:
+    """The YAML form of a :class:`~drake_skills.data.workspace.Workspace` (per-axis bounds)."""
+
+    # per-axis lower bounds of the raw human positions (e.g. metres)
+    lower: list[float] = field(default_factory=list)
+    # per-axis upper bounds, each above its lower bound
+    upper: list[float] = field(default_factory=list)
+    # the bounds map to [0, scale] (the paper uses 10)
+    scale: float = 10.0
+
+
+@dataclass
+class LibraryConfig:
+    """Hyperparameters of the skill library, named as in the paper.
+
+    One default serves every data set we have (LASA letters, the simulated salad
+    subjects, real human-robot interactions; RESULTS.md): nothing in it is a length.
+    The novelty, merge and split tests are chi-square quantiles of Mahalanobis
+    distances under a within-skill covariance the library learns from the
+    demonstrations it has absorbed (:mod:`drake_skills.library.scale`), so they
+    carry across dimensions, units and numbers of skills.
+
+    ``workspace`` accepts a :class:`~drake_skills.data.workspace.Workspace`, a
+    :class:`WorkspaceBounds` (what YAML gives) or a dict with ``lower``,
+    ``upper`` and ``scale``; it is stored as a ``Workspace``.
+    """
+
+    # --- representation (Eqs. 3-4, 14) ---
+    #: Samples per resampled trajectory (arc length for the human, time for the robot).
+    n_samples: int = 100
+    #: N for the human (gating) trajectories. 7 smooth Gaussians (width 1 spacing) hold a
+    #: reach or a letter stroke; more resolve the oscillation of a wave or a shake, whose
+    #: phase varies from one repetition to the next and then dominates the within-skill
+    #: scatter (buetepage_hr: the within-skill RMS per weight is 0.97 of the distance
+    #: between the closest two skills with 10, 0.5 with 5-7; RESULTS.md, "Representation").
+    n_basis_human: int = 7
+    #: N for the robot trajectories: 7 joints need more than a wrist path.
+    n_basis_robot: int = 20
+    #: Gaussian width as a multiple of the spacing between basis centres.
+    basis_width: float = 1.0
+    #: Normalize the basis (rows of Phi sum to 1), so weights live in the
+    #: units of the trajectory and the observation noise means the same thing
+    #: for weights as for positions.
+    basis_normalized: bool = True
+    #: Ridge factor of the weight regression (the paper's beta in Eq. 3). The
+    #: overlapping basis makes the regression ill-conditioned: with 1e-6 human
+    #: weights reach |w| = 160 on a [0, 10] workspace and the within-skill scatter is
+    #: mostly that; 1e-2 keeps |w| within the workspace at 0.03 units more fit error.
+    ridge: float = 1e-2
+    #: Subtract the normalized start position (Eq. 14).
+    subtract_start: bool = True
+    #: Arc length counts a human sample only once it lies this far (normalized
+    #: units; 0.1 = 1 % of the workspace, ~1-2 cm for a seated person) from the
+    #: last counted one (``promp.preprocessing.path_vertices``); 0 counts every
+    #: sample that moves, as the paper's equidistant spatial interpolation.
+    #: Without it tracker noise adds path length (20-40 % on the simulated salad
+    #: data, 0.5 mm at 150 Hz), the phase becomes partly time-like and the hold at
+    #: the end of a reach takes a fifth of it.
+    resample_tolerance: float = 0.1
+    #: Default workspace for human data (None: data is already normalized);
+    #: a per-call ``workspace`` argument overrides it (one per subject).
+    workspace: Optional[WorkspaceBounds] = None
+
+    # --- the shared within-skill scale (replaces the paper's fixed Sigma_init) ---
+    #: rho: before the library has pooled any within-skill scatter, a skill is assumed
+    #: to spread rho times the RMS spread (per weight) of all demonstrations seen so
+    #: far. Scale free: the same in metres, millimetres or normalized units, for 4
+    #: skills or 1000 (chosen on held-out data, RESULTS.md "Choosing the defaults").
+    prior_scale: float = 0.3
+    #: ... and at least this much (normalized units, the workspace spans 10): the prior of a
+    #: library that has seen only one skill, whose own spread then says nothing about
+    #: how far apart skills lie (a teacher showing one skill several times in a row).
+    prior_floor: float = 0.4
+    #: nu_0: how many pooled within-skill deviations that prior counts for; the scatter
+    #: the components have absorbed takes over as it grows past this.
+    prior_strength: float = 2.0
+    #: Fraction by which the shared covariance is pulled towards its mean diagonal
+    #: (per block), so that it is positive definite and well conditioned from the first
+    #: pooled deviation on, in any dimension.
+    shrinkage: float = 0.3
+    #: Pseudo-demonstrations of the shared covariance in each component's own (expert)
+    #: covariance ``(kappa Sigma + S_k) / (kappa + s_k - 1)``: a component seen once has
+    #: the shared covariance (the paper's Sigma_init, learned), one seen often its own.
+    expert_prior: float = 1.0
+
+    # --- novelty: T_nov (Eq. 9, Algorithm 1) and "unknown" (Sec. 3.3) ---
+    #: "chi2" (scale free, default) or "loglik" (threshold on log p(w|k)).
+    novelty_test: str = "chi2"
+    #: Chi-square quantile of the Mahalanobis distance beyond which a motion is novel.
+    novelty_quantile: float = 0.999
+    #: log T_nov for novelty_test="loglik".
+    log_T_nov: float = -60.0
+    #: Largest probability of a wrong skill that recognition accepts: below
+    #: ``1 - decision_risk`` posterior for the best candidate the answer is "undecided".
+    decision_risk: float = 0.01
+
+    # --- merging (Eqs. 10-11) and splitting ---
+    #: v_min^merge: a pair is checked for merging once the older component is past this age.
+    merge_min_age: int = 0
+    #: Chi-square quantile of the two-sample distance of two components' means below
+    #: which they merge (divided by s^beta, the scale-free form of Eq. 10).
+    merge_quantile: float = 0.999
+    #: log T_merge for novelty_test="loglik": merge when log p(mu_i - mu_j) > log_T_merge + beta log s.
+    log_T_merge: float = -20.0
+    #: beta of Eq. (10): extra consolidation with support (the two-sample distance
+    #: already grows with the supports, so 0 by default).
+    consolidation: float = 0.0
+    #: Chi-square quantile of the two-sample distance of a component's two
+    #: sub-clusters beyond which it splits in two (above ``merge_quantile``).
+    split_quantile: float = 0.9999
+
+    # --- deletion of outliers ---
+    #: v_min^del: age after which a component must have reached s_min, counted per
+    #: five components (with K > 5 components the age limit is delete_min_age K / 5, so
+    #: that a skill shown once every K demonstrations is not deleted before its second).
+    delete_min_age: int = 30
+    #: s_min: components with support <= s_min past their deletion age are deleted.
+    delete_min_support: float = 1.5
+
+    # --- conditioning (Eq. 13) and anticipation ---
+    #: sigma_o, variance of an observed human sample (normalized units^2).
+    observation_noise: float = 0.05
+
+    def __post_init__(self):
+        ints = {"n_samples": 4, "n_basis_human": 2, "n_basis_robot": 2, "merge_min_age": 0, "delete_min_age": 0}
+        for name, lo in ints.items():
+            v = getattr(self, name)
+            if isinstance(v, bool) or int(v) != v or v < lo:
+                raise ValueError(f"LibraryConfig.{name} must be an integer >= {lo}, got {v!r}")
+            setattr(self, name, int(v))
+        positive = ["basis_width", "prior_scale", "prior_strength", "expert_prior", "observation_noise"]
+        for name in positive:
+            v = getattr(self, name)
+            if not np.isfinite(v) or v <= 0:
+                raise ValueError(f"LibraryConfig.{name} must be positive, got {v!r}")
+        for name in ("ridge", "consolidation", "delete_min_support", "resample_tolerance", "prior_floor"):
+            v = getattr(self, name)
+            if not np.isfinite(v) or v < 0:
+                raise ValueError(f"LibraryConfig.{name} must be >= 0, got {v!r}")
+        for name in ("novelty_quantile", "merge_quantile", "split_quantile", "decision_risk"):
+            v = getattr(self, name)
+            if not 0 < v < 1:
+                raise ValueError(f"LibraryConfig.{name} must be in (0, 1), got {v!r}")
+        if not 0 <= self.shrinkage < 1:
+            raise ValueError(f"LibraryConfig.shrinkage must be in [0, 1), got {self.shrinkage!r}")
+        if self.split_quantile <= self.merge_quantile:
+            raise ValueError(f"LibraryConfig.split_quantile ({self.split_quantile}) must be above merge_quantile "
+                             f"({self.merge_quantile}), or a merge would be split again at once")
+        if self.novelty_test not in NOVELTY_TESTS:
+            raise ValueError(f"LibraryConfig.novelty_test must be one of {NOVELTY_TESTS}, got {self.novelty_test!r}")
+        self.workspace = _as_workspace(self.workspace)
+
+    def dict(self) -> dict:
+        """The fields as JSON-ready values (the workspace as ``{"lower", "upper", "scale"}``)."""
+        d = {f.name: getattr(self, f.name) for f in fields(self)}
+        d["workspace"] = None if self.workspace is None else self.workspace.dict()
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "LibraryConfig":
+        """The inverse of :meth:`dict`; unknown keys raise ``ValueError`` naming them."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(d) - known)
+        retired = [k for k in unknown if k in RETIRED_FIELDS]
+        if retired:
+            raise ValueError(f"LibraryConfig fields {retired} are gone: the novelty scale is now learned from the "
+                             f"demonstrations (prior_scale, prior_strength, shrinkage); delete them")
+        if unknown:
+            raise ValueError(f"unknown LibraryConfig fields: {unknown}")
+        return cls(**d)
+
+    @property
+    def basis_human(self) -> GaussianBasis:
+        return GaussianBasis(self.n_basis_human, self.basis_width, self.basis_normalized)
+
+    @property
+    def basis_robot(self) -> GaussianBasis:
+        return GaussianBasis(self.n_basis_robot, self.basis_width, self.basis_normalized)
+
+
+def _as_workspace(ws) -> Optional[Workspace]:
+    if ws is None or isinstance(ws, Workspace):
+        return ws
+    if isinstance(ws, WorkspaceBounds):
+        ws = {"lower": ws.lower, "upper": ws.upper, "scale": ws.scale}
+    if isinstance(ws, dict):
+        unknown = sorted(set(ws) - {"lower", "upper", "scale"})
+        if unknown or not {"lower", "upper"} <= set(ws):
+            raise ValueError(f"LibraryConfig.workspace needs 'lower' and 'upper' (and 'scale'), got keys {sorted(ws)}")
+        return Workspace.from_dict(ws)
+    raise ValueError(f"LibraryConfig.workspace must be a Workspace, WorkspaceBounds, dict or None, "
+                     f"got {type(ws).__name__}")

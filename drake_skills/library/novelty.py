@@ -1,0 +1,122 @@
+"""The novelty, "unknown", merge and split tests: the one place where chi2 or loglik is chosen.
+
+All tests look at squared Mahalanobis distances under the shared gating covariance
+``Sigma`` (:mod:`drake_skills.library.scale`):
+
+* novelty / "unknown" (Eq. 9, Algorithm 1, Sec. 3.3): the distance of a motion's
+  weights to component k under its predictive covariance ``Sigma (1 + 1/s_k)``. The
+  paper thresholds ``p(w|k)`` in one place and the responsibility in another; we use
+  the likelihood test for both learning and recognition: a motion is novel when no
+  component explains it.
+* merge (Eq. 10): the two-sample distance of two components' means,
+  ``|mu_i - mu_j|^2_Sigma / (1/s_i + 1/s_j)``, i.e. the likelihood of their mean
+  difference under ``N(0, Sigma (1/s_i + 1/s_j))``. It already consolidates: the
+  larger the supports, the closer two means must be to merge. The paper's explicit
+  ``T_merge s^beta`` is kept as ``consolidation`` (0 by default).
+* split: a component whose two sub-clusters lie further apart than the
+  ``split_quantile`` of the same statistic is split in two again (hysteresis:
+  ``split_quantile`` > ``merge_quantile``, so a merge is not undone by the next step).
+
+Two forms, chosen by ``LibraryConfig.novelty_test`` in :func:`novelty_rule`:
+
+* :class:`Chi2Rule` (default, scale free): thresholds are chi-square quantiles with as
+  many degrees of freedom as gating weights.
+* :class:`LogLikRule`, the paper's literal test on ``log p`` (``log_T_nov``,
+  ``log_T_merge``); its settings depend on the dimension. Splits use the chi-square
+  quantile in both forms.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Protocol
+
+import numpy as np
+from scipy.stats import chi2
+
+_LOG_2PI = np.log(2.0 * np.pi)
+
+
+class NoveltyRule(Protocol):
+    """What the learning loop and recognition ask of a test."""
+
+    def novel(self, log_likelihoods: np.ndarray, mahalanobis_sq: np.ndarray, dof: int) -> np.ndarray:
+        """Per component, shape (K,): does it fail to explain the motion?"""
+
+    def merge_scores(self, mahalanobis_sq: np.ndarray, support: np.ndarray, inflate: np.ndarray, logdet: float,
+                     dof: int) -> np.ndarray:
+        """Scores (K,) of merging pairs; below 1 merges, lowest first.
+
+        ``mahalanobis_sq`` are two-sample distances, ``support`` the larger support of
+        each pair, ``inflate`` ``1/s_i + 1/s_j`` and ``logdet`` that of ``Sigma``.
+        """
+
+    def splits(self, mahalanobis_sq: np.ndarray, dof: int) -> np.ndarray:
+        """Per component: do its two sub-clusters this far apart (two-sample distance) make two components?"""
+
+
+@lru_cache(maxsize=256)
+def _chi2_ppf(q: float, dof: int) -> float:
+    return float(chi2.ppf(q, dof))
+
+
+def chi2_ppf(q: float, dof):
+    """``scipy.stats.chi2.ppf(q, dof)``: cached for an integer ``dof`` (the usual case), vectorized for an array.
+
+    A prefix observes fewer weight directions than a whole motion, so its test has
+    a (non-integer, per component) effective number of degrees of freedom.
+    """
+    if np.ndim(dof) == 0 and float(dof) == int(dof):
+        return _chi2_ppf(float(q), int(dof))
+    return chi2.ppf(q, np.asarray(dof, float))
+
+
+@dataclass(frozen=True)
+class Chi2Rule:
+    """Scale-free tests on the squared Mahalanobis distance (chi-square quantiles)."""
+
+    novelty_quantile: float
+    merge_quantile: float
+    split_quantile: float
+    consolidation: float
+
+    def novel(self, log_likelihoods, mahalanobis_sq, dof) -> np.ndarray:
+        return np.asarray(mahalanobis_sq) > chi2_ppf(self.novelty_quantile, dof)
+
+    def merge_scores(self, mahalanobis_sq, support, inflate, logdet, dof) -> np.ndarray:
+        threshold = chi2_ppf(self.merge_quantile, int(dof)) / np.asarray(support, float) ** self.consolidation
+        return np.asarray(mahalanobis_sq) / threshold
+
+    def splits(self, mahalanobis_sq, dof) -> np.ndarray:
+        return np.asarray(mahalanobis_sq) > chi2_ppf(self.split_quantile, int(dof))
+
+
+@dataclass(frozen=True)
+class LogLikRule:
+    """The paper's tests on ``log p`` (Algorithm 1, Eq. 10)."""
+
+    log_T_nov: float
+    log_T_merge: float
+    split_quantile: float
+    consolidation: float
+
+    def novel(self, log_likelihoods, mahalanobis_sq, dof) -> np.ndarray:
+        return np.asarray(log_likelihoods) < self.log_T_nov
+
+    def merge_scores(self, mahalanobis_sq, support, inflate, logdet, dof) -> np.ndarray:
+        # log N(mu_i - mu_j | 0, Sigma (1/s_i + 1/s_j))
+        logp = -0.5 * (dof * _LOG_2PI + logdet + dof * np.log(inflate) + np.asarray(mahalanobis_sq))
+        threshold = self.log_T_merge + self.consolidation * np.log(np.asarray(support, float))
+        return np.exp(np.clip(threshold - logp, -50.0, 50.0))
+
+    def splits(self, mahalanobis_sq, dof) -> np.ndarray:
+        return np.asarray(mahalanobis_sq) > chi2_ppf(self.split_quantile, int(dof))
+
+
+def novelty_rule(config) -> NoveltyRule:
+    """The test ``config.novelty_test`` names, with its settings."""
+    if config.novelty_test == "chi2":
+        return Chi2Rule(config.novelty_quantile, config.merge_quantile, config.split_quantile, config.consolidation)
+    if config.novelty_test == "loglik":
+        return LogLikRule(config.log_T_nov, config.log_T_merge, config.split_quantile, config.consolidation)
+    raise ValueError(f"unknown novelty_test {config.novelty_test!r}")

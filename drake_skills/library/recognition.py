@@ -1,0 +1,314 @@
+"""Run-time queries of the skill library: recognition (Eq. 12), the robot's answer (Eq. 13), the phase.
+
+:class:`RecognitionMixin` is the query half of
+:class:`~drake_skills.library.incremental.SkillLibrary` (the learning half and the
+state live there). It reads the library's state through the attributes and methods
+``SkillLibrary`` defines: ``config``, ``_components``, ``_rule``, ``_scale``,
+``n_human``, ``has_robot``, ``dim_robot_``, ``_metric()``, ``_whitened_means()``,
+``_shared_cov()``, ``_expert_cov()``, ``_cached()``, ``_model()``,
+``_check_fitted()``, ``human_samples()``, ``_normalized()`` and ``_guard()``; it keeps
+two caches of its own keyed on the current scale (the response whitener and the
+eigendecompositions of prefix scoring), so a library that learns never answers from
+a stale one.
+
+Whole motions are tested on their weights against each component (as learning
+does); a beginning is scored for all (component, phase) pairs at once
+(:mod:`drake_skills.library.prefix`) and, above :data:`PRUNE_MIN_COMPONENTS`, only for
+the components a cheap lower bound (:mod:`drake_skills.library.prefix_bound`) does not
+rule out. The answers are those of scoring every component one by one
+(``tests/library/test_scale.py`` checks them against that reference).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from drake_skills.data.workspace import Workspace
+from drake_skills.library.algorithm import ComponentModel, gating_scores, responsibilities
+from drake_skills.library.novelty import Chi2Rule, chi2_ppf
+from drake_skills.library.prefix import PHASE_GRID, phase_band, score_at_phase, score_prefix
+from drake_skills.library.prefix_bound import prefix_candidates
+from drake_skills.library.scale import observation_noise
+from drake_skills.library.views import Recognition, UnknownSkillError
+from drake_skills.promp.basis import ridge_weights, trajectory_covariance
+from drake_skills.promp.interaction import condition_on_observations
+
+__all__ = ["PRUNE_MIN_COMPONENTS", "RecognitionMixin"]
+
+#: Above this many components, prefix recognition scores only the components a cheap
+#: bound does not rule out (:func:`~drake_skills.library.prefix_bound.prefix_candidates`).
+PRUNE_MIN_COMPONENTS = 16
+
+
+class RecognitionMixin:
+    """Recognition, prediction and phase estimation for :class:`~drake_skills.library.incremental.SkillLibrary`."""
+    def recognize(self, human, *, observed_fraction: float | None = None, workspace: Workspace | None = None,
+                  normalized: bool = False) -> Recognition:
+        """Which skill is this human motion (Eq. 12): "skill", "undecided" or "unknown".
+
+        Parameters
+        ----------
+        human : array, shape (T, D_h)
+            The observed human positions (raw units if a workspace applies; see
+            :meth:`human_samples` for ``normalized``): a whole motion or its beginning.
+        observed_fraction : float in (0, 1], optional
+            The fraction of the whole motion's path ``human`` covers, if known: 1 tests
+            the motion's weights against each component (as learning does), less
+            compares the observed samples with each component's prefix of that length.
+            If omitted, the fraction is estimated per component: its path length
+            against the component's mean path length, refined over a grid of phases (:mod:`~drake_skills.library.prefix`)
+            by the likelihood of the samples (``Recognition.phases``).
+        workspace : Workspace, optional
+        normalized : bool
+            ``human`` is already in the library's normalized units (Eq. 14 applied).
+        """
+        self._check_fitted()
+        if observed_fraction is not None:
+            y = self.human_samples(human, workspace=workspace, observed_fraction=observed_fraction,
+                                   normalized=normalized)
+            self._guard(y, workspace, normalized, whole=float(observed_fraction) == 1, query=True, where=None)
+            return self._recognize_fixed(y, float(observed_fraction))
+        path = self._normalized(human, workspace, normalized)
+        self._guard(path.y, workspace, normalized, whole=False, query=True, where=None)
+        return self._recognize_prefix(path)
+
+    def _empty_recognition(self, dof) -> Recognition:
+        z = np.zeros(0)
+        return Recognition(None, (), z, z, z, dof, "unknown", z, z)
+
+    def _decide(self, logp, d2, dof, phases, scored: np.ndarray | None = None) -> Recognition:
+        """The answer from per-component statistics; ``scored``: the components scored (the others cannot fit)."""
+        comps = self._components
+        if scored is None:
+            fits = ~self._rule.novel(logp, d2, dof)
+        else:
+            fits = np.zeros(len(comps), bool)
+            fits[scored] = ~self._rule.novel(logp[scored], d2[scored], dof[scored])
+        resp = responsibilities(logp, comps.support)
+        post = responsibilities(logp, comps.support, fits)
+        ids = comps.ids
+        best = int(np.argmax(post))
+        if not fits.any():
+            status, comp = "unknown", None
+        elif post[best] >= 1.0 - self.config.decision_risk or \
+                post[self._same_response(best, post > 0)].sum() >= 1.0 - self.config.decision_risk:
+            status, comp = "skill", ids[best]
+        else:
+            status, comp = "undecided", None
+        return Recognition(comp, ids, resp, logp, d2, dof, status, phases, post)
+
+    def _same_response(self, best: int, candidates: np.ndarray) -> np.ndarray:
+        """Which candidates answer like component ``best`` (a mask, ``best`` included).
+
+        Executing ``best`` is only wrong if the motion belongs to a component that
+        would answer differently: another component whose mean response (its robot
+        weights; the human weights of a human-only library) lies within the best's
+        predictive within-skill spread (the ``novelty_quantile`` of the distance under
+        ``Sigma_rr (1 + 1/s_best)``) answers the same way, so its probability counts
+        for ``best`` in the decision.
+        """
+        comps = self._components
+        h = self.n_human
+        idx = np.flatnonzero(candidates)
+        out = np.zeros(len(comps), bool)
+        out[best] = True
+        others = idx[idx != best]
+        if not others.size:
+            return out
+        block = slice(h, None) if self.has_robot else slice(0, h)
+        Linv = self._response_whitener()
+        mb = comps.items[best].mean[block]
+        diff = np.stack([comps.items[j].mean[block] - mb for j in others]) @ Linv.T
+        d2 = np.einsum("ij,ij->i", diff, diff) / (1.0 + 1.0 / comps.support[best])
+        out[others] = d2 <= chi2_ppf(self.config.novelty_quantile, Linv.shape[0])
+        return out
+
+    def _response_whitener(self) -> np.ndarray:
+        """Inverse Cholesky factor of the shared covariance of the responses (robot weights; human for letters)."""
+        if getattr(self, "_response_cache", (None,))[0] is not self._scale:
+            h = self.n_human
+            block = slice(h, None) if self.has_robot else slice(0, h)
+            L = np.linalg.cholesky(self._shared_cov()[block, block])
+            self._response_cache = (self._scale, np.linalg.inv(L))
+        return self._response_cache[1]
+
+    def _recognize_fixed(self, y, observed_fraction: float) -> Recognition:
+        """Eq. (12) on preprocessed human samples ``y`` evenly spaced in phase over ``[0, observed_fraction]``."""
+        cfg = self.config
+        comps = self._components
+        h = self.n_human
+        if not len(comps):
+            return self._empty_recognition(h)
+        metric = self._metric()
+        if observed_fraction == 1:
+            w_h = ridge_weights(y, cfg.basis_human, cfg.ridge)
+            logp, d2 = gating_scores(w_h, comps, metric, self._whitened_means())
+            return self._decide(logp, d2, h, np.ones(len(comps)))
+        logp, d2, dof = score_at_phase(y, observed_fraction, comps.means_h, 1.0 + 1.0 / comps.support, metric.chol,
+                                       cfg.basis_human, self._noise(), self._prefix_cache(metric))
+        return self._decide(logp, d2, dof, np.full(len(comps), observed_fraction))
+
+    def _recognize_prefix(self, path: "_Path") -> Recognition:
+        """Recognition with the phase estimated per component (see :meth:`recognize`)."""
+        cfg = self.config
+        comps = self._components
+        h = self.n_human
+        if not len(comps):
+            return self._empty_recognition(h)
+        metric = self._metric()
+        guess = path.length / np.maximum(comps.path_length, 1e-12)
+        ys = path.resample(_prefix_samples(cfg.n_samples, float(np.median(np.minimum(guess, 1.0)))))
+        inflate = 1.0 + 1.0 / comps.support
+        noise = self._noise()
+        idx = None
+        band = phase_band(guess)
+        if len(comps) > PRUNE_MIN_COMPONENTS and isinstance(self._rule, Chi2Rule):
+            sigma_max = self._cached("sigma_max", lambda: float(np.linalg.eigvalsh(metric.cov)[-1]))
+            keep = prefix_candidates(comps.means_h, inflate, PHASE_GRID, band, ys, sigma_max,
+                                     cfg.basis_human, noise, chi2_ppf(cfg.novelty_quantile, self.n_human))
+            idx = np.flatnonzero(keep)
+        if idx is None or idx.size == len(comps):
+            sc = score_prefix(ys, guess, comps.means_h, inflate, metric.chol, cfg.basis_human, noise,
+                              self._prefix_cache(metric), band)
+            return self._decide(sc.log_likelihoods, sc.mahalanobis_sq, sc.dof, sc.phases)
+        # the components ruled out cannot explain the samples: log-likelihood -inf, distance inf
+        K = len(comps)
+        logp, d2 = np.full(K, -np.inf), np.full(K, np.inf)
+        dof, phases = np.full(K, float(self.n_human)), np.clip(guess, 1.0 / cfg.n_samples, 1.0)
+        if idx.size:
+            sc = score_prefix(ys, guess[idx], comps.means_h[idx], inflate[idx], metric.chol, cfg.basis_human, noise,
+                              self._prefix_cache(metric), band[idx])
+            logp[idx], d2[idx], dof[idx], phases[idx] = sc.log_likelihoods, sc.mahalanobis_sq, sc.dof, sc.phases
+        return self._decide(logp, d2, dof, phases, scored=idx)
+
+    def predict_robot(self, human, observed_fraction: float | None = None, *, workspace: Workspace | None = None,
+                      component: int | None = None, n_steps: int | None = None, normalized: bool = False):
+        """Robot trajectory for an observed human motion (Eqs. 12-13).
+
+        Recognizes the skill (unless ``component`` is given), conditions its
+        Interaction ProMP on the observed human samples and returns the robot
+        trajectory distribution over the component's phase (normalized time).
+        Without ``observed_fraction`` the fraction observed is estimated as in
+        :meth:`recognize`. ``normalized=True``: ``human`` is already in the library's
+        normalized units (see :meth:`human_samples`).
+
+        Returns
+        -------
+        mean : array, shape (n_steps, D_r)
+            Joint positions; play them over ``component(k).duration`` seconds.
+        cov : array, shape (n_steps, D_r, D_r)
+            Per-step covariance.
+
+        Raises
+        ------
+        UnknownSkillError
+            If the motion matches no component, or more than one and none clearly.
+        ValueError
+            For bad input, or a library without robot trajectories.
+        KeyError
+            If ``component`` is not a component id (e.g. it was deleted).
+        """
+        self._check_fitted()
+        if not self.has_robot:
+            raise ValueError("this library was learned from human-only demonstrations: it has no robot part")
+        cfg = self.config
+        if observed_fraction is None:
+            path = self._normalized(human, workspace, normalized)
+            self._guard(path.y, workspace, normalized, whole=False, query=True, where=None)
+            if component is None:
+                rec = self._recognize_prefix(path)
+                if rec.component is None:
+                    raise UnknownSkillError(_unknown_message(rec))
+                component, f = rec.component, rec.phase
+            else:
+                f = self._phase_of(path, self._model(component))
+            y = path.resample(max(2, int(round(cfg.n_samples * f))))
+        else:
+            f = float(observed_fraction)
+            y = self.human_samples(human, workspace=workspace, observed_fraction=f, normalized=normalized)
+            self._guard(y, workspace, normalized, whole=f == 1, query=True, where=None)
+            if component is None:
+                rec = self._recognize_fixed(y, f)
+                if rec.component is None:
+                    raise UnknownSkillError(_unknown_message(rec))
+                component = rec.component
+        c = self._model(component)
+        Phi_o = cfg.basis_human.phi(np.linspace(0.0, f, y.shape[0]))
+        h, n = self.n_human, n_steps or cfg.n_samples
+        # Eq. (13), keeping only the robot block of the posterior
+        mean_w, cov_w = condition_on_observations(c.mean, self._expert_cov(c), Phi_o, y, self._noise(),
+                                                  start=h)
+        mean_r = cfg.basis_robot.phi_uniform(n) @ mean_w.reshape(self.dim_robot_, -1).T
+        cov_r = trajectory_covariance(cov_w, cfg.basis_robot, self.dim_robot_, n_steps=n)
+        return mean_r, cov_r
+
+    def observation_noise(self) -> float:
+        """The variance of an observed human sample prefix recognition and conditioning use (normalized units^2).
+
+        ``config.observation_noise`` or, if larger, the mean residual of the demonstrations'
+        paths around their basis fits (:func:`~drake_skills.library.scale.observation_noise`).
+        """
+        self._check_fitted()
+        return self._noise()
+
+    def _noise(self) -> float:
+        return observation_noise(self._scale, self.config.observation_noise)
+
+    def _prefix_cache(self, metric) -> dict:
+        """Eigendecompositions of prefix recognition for the current scale (emptied when the library learns)."""
+        if getattr(self, "_prefix", (None,))[0] is not self._scale:
+            self._prefix = (self._scale, {})
+        return self._prefix[1]
+
+    def estimate_phase(self, human, component: int, *, workspace: Workspace | None = None,
+                       normalized: bool = False) -> float:
+        """How much of component ``component``'s motion ``human`` covers (0-1), as :meth:`recognize` estimates it."""
+        self._check_fitted()
+        return self._phase_of(self._normalized(human, workspace, normalized), self._model(component))
+
+    def _phase_of(self, path: "_Path", c: ComponentModel) -> float:
+        """The phase of one component that explains the normalized path ``y`` best (see :mod:`.prefix`)."""
+        cfg = self.config
+        metric = self._metric()
+        guess = path.length / max(c.cluster.path_length, 1e-12)
+        ys = path.resample(_prefix_samples(cfg.n_samples, min(1.0, guess)))
+        sc = score_prefix(ys, np.array([guess]), c.mean[None, :self.n_human], np.array([1.0 + 1.0 / c.support]),
+                          metric.chol, cfg.basis_human, self._noise(), self._prefix_cache(metric))
+        return float(sc.phases[0])
+
+
+def _prefix_samples(n_samples: int, fraction: float) -> int:
+    """Samples a prefix covering ``fraction`` of a path is resampled to: ``fraction n_samples``, rounded up to a
+    multiple of 5 (so that prefix recognition meets the same few sizes again and reuses their cached terms)."""
+    return int(min(n_samples, max(5, 5 * np.ceil(fraction * n_samples / 5.0))))
+
+
+@dataclass(frozen=True, eq=False)
+class _Path:
+    """A motion normalized (Eq. 14) with its path: the vertices counted as moves and their arc length.
+
+    Computed once per query, so that recognizing, estimating the phase and
+    resampling the same motion walk its samples once.
+    """
+
+    y: np.ndarray
+    vertices: np.ndarray
+    s: np.ndarray
+
+    @property
+    def length(self) -> float:
+        return float(self.s[-1])
+
+    def resample(self, n: int) -> np.ndarray:
+        """``n`` samples equally spaced along the path (:func:`~drake_skills.promp.preprocessing.resample_by_arc_length`)."""
+        grid = np.linspace(0.0, self.s[-1], int(n))
+        return np.stack([np.interp(grid, self.s, self.vertices[:, d]) for d in range(self.vertices.shape[1])], axis=1)
+
+
+def _unknown_message(rec: Recognition) -> str:
+    if rec.status == "undecided":
+        top = np.argsort(rec.posterior)[::-1][:2]
+        cands = ", ".join(f"{rec.ids[i]} ({rec.posterior[i]:.2f})" for i in top)
+        return f"the motion fits more than one skill and none clearly ({cands}): observe more, or ask"
+    return "the motion matches no skill in the library: ask for a demonstration"

@@ -1,0 +1,239 @@
+"""The library's novelty scale: one within-skill covariance, learned from what the library has seen.
+
+The paper gives every new component the same hand-set ``Sigma_init`` and judges
+novelty and merges on it. No fixed scale serves real data (``../shared/DESIGN.md``,
+"What we measured on real motion"): the within-skill scatter of real human motion is
+ten times wider than that of letters, and it is far from isotropic. Here the scale is
+estimated online, as in a hierarchical (Normal-inverse-Wishart) mixture whose
+components share one within-skill covariance:
+
+* :class:`Cluster` holds the exact moments of a set of weight vectors: support ``s``,
+  mean, and the scatter ``S = sum_i lam_i (w_i - mean)(w_i - mean)^T`` as a factor
+  ``F`` with ``S = F F^T`` (a few columns per demonstration, so a library of a
+  thousand small components stays small; never more columns than dimensions).
+* :class:`SharedScale` holds the running totals of every demonstration's weights and
+  the scatter pooled over all components, ``P = sum_k S_k`` with
+  ``nu = sum_k (s_k - 1)`` degrees of freedom.
+* :func:`shared_covariance` turns them into the within-skill covariance
+
+      Sigma = shrink((nu_0 W_0 + P) / (nu_0 + nu)),
+      W_0   = rho^2 blkdiag(t_h I, t_r I),
+
+  where ``t_h`` (``t_r``) is the mean variance per human (robot) weight of all
+  demonstrations seen so far, ``rho = prior_scale`` and ``nu_0 = prior_strength``:
+  before the library has seen a skill twice, a skill is assumed to spread ``rho``
+  times as much as all motions together (a scale-free prior); as components absorb
+  demonstrations their pooled scatter takes over. ``shrink`` pulls each block
+  towards its mean diagonal (``shrinkage``), so the estimate is positive definite
+  from the first pooled demonstration on, whatever the dimension.
+
+Everything here is a pure function of immutable values.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Relative floor added to the diagonal of the shared covariance (keeps it positive
+#: definite before any spread has been seen, e.g. after one demonstration).
+_FLOOR = 1e-9
+
+
+@dataclass(frozen=True, eq=False)
+class Cluster:
+    """Exact moments of a (responsibility-weighted) set of weight vectors.
+
+    Attributes
+    ----------
+    support : float
+        s, the total weight of its members (> 0).
+    mean : array, shape (d,)
+    factor : array, shape (d, r)
+        Scatter factor: ``S = factor @ factor.T``; ``r <= d``.
+    duration : float
+        Mean duration of its demonstrations (s).
+    path_length : float
+        Mean length of their normalized human paths (arc length, workspace units).
+    """
+
+    support: float
+    mean: np.ndarray
+    factor: np.ndarray
+    duration: float
+    path_length: float
+
+    @classmethod
+    def of_sample(cls, w: np.ndarray, duration: float, path_length: float, support: float = 1.0) -> "Cluster":
+        """One demonstration with weights ``w`` (d,)."""
+        w = np.array(w, dtype=float)
+        return cls(float(support), w, np.zeros((w.shape[0], 0)), float(duration), float(path_length))
+
+    @property
+    def scatter(self) -> np.ndarray:
+        """S, shape (d, d)."""
+        return self.factor @ self.factor.T
+
+    def add(self, w: np.ndarray, lam: float, duration: float, path_length: float) -> tuple["Cluster", np.ndarray]:
+        """The cluster with ``w`` added at weight ``lam`` (Eqs. 6-8 with the exact running moments).
+
+        Returns the new cluster and the scatter increment's factor column
+        ``g`` (d,), with ``S_new = S + g g^T``.
+
+        Notes
+        -----
+        With ``s = s_old + lam``, ``gamma = lam / s`` and ``e = w - mu_old``::
+
+            mu = mu_old + gamma e,    S = S_old + lam (s_old / s) e e^T.
+
+        (Eqs. 7-8 as printed drop a factor ``(1 - gamma)`` of the new scatter; this is
+        the exact weighted scatter, so a component's covariance ``S / s`` equals the
+        biased sample covariance of its members.)
+        """
+        s = self.support + lam
+        gamma = lam / s
+        e = w - self.mean
+        g = np.sqrt(lam * self.support / s) * e
+        mean = self.mean + gamma * e
+        factor = _compress(np.column_stack([self.factor, g]))
+        dur = self.duration + gamma * (duration - self.duration)
+        path = self.path_length + gamma * (path_length - self.path_length)
+        return Cluster(s, mean, factor, dur, path), g
+
+    def pool(self, other: "Cluster") -> tuple["Cluster", np.ndarray]:
+        """The union of two clusters (moment matching; the corrected Eq. 11).
+
+        Returns the pooled cluster and the factor column ``g`` of the between term,
+        ``S = S_a + S_b + g g^T`` with ``g = sqrt(s_a s_b / s) (mu_a - mu_b)``.
+        """
+        sa, sb = self.support, other.support
+        s = sa + sb
+        dm = self.mean - other.mean
+        g = np.sqrt(sa * sb / s) * dm
+        mean = (sa * self.mean + sb * other.mean) / s
+        factor = _compress(np.column_stack([self.factor, other.factor, g]))
+        dur = (sa * self.duration + sb * other.duration) / s
+        path = (sa * self.path_length + sb * other.path_length) / s
+        return Cluster(s, mean, factor, dur, path), g
+
+
+def _compress(factor: np.ndarray) -> np.ndarray:
+    """An equivalent factor with at most ``d`` columns (``F F^T`` unchanged)."""
+    d, r = factor.shape
+    if r <= d:
+        return factor
+    R = np.linalg.qr(factor.T, mode="r")  # F^T = Q R  =>  F F^T = R^T R
+    return np.ascontiguousarray(R.T)
+
+
+@dataclass(frozen=True, eq=False)
+class SharedScale:
+    """Running totals of all demonstrations and the within-skill scatter pooled over components.
+
+    Attributes
+    ----------
+    n : int
+        Demonstrations counted in the totals.
+    total_mean : array, shape (d,)
+        Mean of their weights.
+    total_m2 : array, shape (d,)
+        Per weight, the sum of squared deviations from ``total_mean`` (Welford).
+    pooled : array, shape (d, d)
+        P, the sum of the components' scatters.
+    dof : float
+        nu, the sum over components of ``s_k - 1``.
+    fit_m2 : float
+        Sum over the demonstrations of the mean squared residual of their human path
+        around its own basis fit (normalized units^2): what the weights cannot hold (the
+        sensor noise, an oscillation finer than the basis). Its mean is the observation
+        noise prefix recognition and conditioning need (:func:`observation_noise`).
+    """
+
+    n: int
+    total_mean: np.ndarray
+    total_m2: np.ndarray
+    pooled: np.ndarray
+    dof: float
+    fit_m2: float = 0.0
+
+    @classmethod
+    def empty(cls, d: int) -> "SharedScale":
+        return cls(0, np.zeros(d), np.zeros(d), np.zeros((d, d)), 0.0, 0.0)
+
+    def count(self, w: np.ndarray, fit_residual: float = 0.0) -> "SharedScale":
+        """The totals with one more demonstration ``w`` (d,) whose human fit left ``fit_residual`` (mean square)."""
+        n = self.n + 1
+        delta = w - self.total_mean
+        mean = self.total_mean + delta / n
+        m2 = self.total_m2 + delta * (w - mean)
+        return SharedScale(n, mean, m2, self.pooled, self.dof, self.fit_m2 + float(fit_residual))
+
+    def with_scatter(self, columns: np.ndarray, sign: float, dof: float) -> "SharedScale":
+        """``P +- columns columns^T`` and ``nu + dof`` (``columns`` (d,) or (d, r))."""
+        g = np.asarray(columns, float).reshape(self.pooled.shape[0], -1)
+        pooled = self.pooled + sign * (g @ g.T)
+        return SharedScale(self.n, self.total_mean, self.total_m2, 0.5 * (pooled + pooled.T), self.dof + dof,
+                           self.fit_m2)
+
+    def block_variances(self, n_human: int) -> tuple[float, float]:
+        """Mean variance per weight over all demonstrations: human block, robot block."""
+        var = self.total_m2 / max(self.n, 1)
+        t_h = float(np.mean(var[:n_human])) if n_human else 0.0
+        t_r = float(np.mean(var[n_human:])) if var.shape[0] > n_human else 0.0
+        return t_h, t_r
+
+
+def observation_noise(scale: SharedScale, floor: float) -> float:
+    """Variance of an observed human sample: the mean out-of-basis residual of the demonstrations seen, at least ``floor``.
+
+    With a fixed value (``LibraryConfig.observation_noise``) a motion whose path
+    holds more than the basis can (a wave, a shake: its oscillation is finer than
+    seven Gaussians) looks impossibly far from every prefix of its own skill; the
+    residual the library has seen says how far samples lie off a fit.
+    """
+    seen = scale.fit_m2 / scale.n if scale.n else 0.0
+    return max(float(floor), float(seen))
+
+
+def _blend(P: np.ndarray, dof: float, W0_diag: np.ndarray, prior_strength: float) -> np.ndarray:
+    S = P / (prior_strength + dof)
+    S[np.diag_indices_from(S)] += prior_strength * W0_diag / (prior_strength + dof)
+    return S
+
+
+def _shrunk(S: np.ndarray, shrinkage: float, floor_scale: float) -> np.ndarray:
+    d = S.shape[0]
+    m = float(np.trace(S)) / d if d else 0.0
+    out = (1.0 - shrinkage) * S
+    out[np.diag_indices_from(out)] += shrinkage * m + _FLOOR * (m + floor_scale) + 1e-300
+    return out
+
+
+def gating_covariance(scale: SharedScale, n_human: int, *, prior_scale: float, prior_strength: float,
+                      shrinkage: float, prior_floor: float = 0.0) -> np.ndarray:
+    """The shared within-skill covariance of the human (gating) weights, shape (h, h)."""
+    h = n_human
+    t_h, _ = scale.block_variances(h)
+    W0 = np.full(h, max(prior_scale ** 2 * t_h, prior_floor ** 2))
+    S = _blend(scale.pooled[:h, :h].copy(), scale.dof, W0, prior_strength)
+    return _shrunk(S, shrinkage, float(np.mean(scale.total_mean[:h] ** 2)) if h else 0.0)
+
+
+def shared_covariance(scale: SharedScale, n_human: int, *, prior_scale: float, prior_strength: float,
+                      shrinkage: float, prior_floor: float = 0.0) -> np.ndarray:
+    """The shared within-skill covariance of the stacked weights ``[w_h; w_r]``, shape (d, d).
+
+    The human block equals :func:`gating_covariance`; each block is shrunk towards its
+    own mean diagonal (the blocks have different units), the cross block by the same
+    factor, so the result is a convex combination of positive semidefinite matrices.
+    """
+    d, h = scale.pooled.shape[0], n_human
+    t_h, t_r = scale.block_variances(h)
+    W0 = np.concatenate([np.full(h, max(prior_scale ** 2 * t_h, prior_floor ** 2)),
+                         np.full(d - h, prior_scale ** 2 * t_r)])
+    S = _blend(scale.pooled.copy(), scale.dof, W0, prior_strength)
+    out = (1.0 - shrinkage) * S
+    for sl in (slice(0, h), slice(h, d)):
+        block = _shrunk(S[sl, sl], shrinkage, float(np.mean(scale.total_mean[sl] ** 2)) if sl.stop > sl.start else 0.0)
+        out[sl, sl] = block
+    return 0.5 * (out + out.T)

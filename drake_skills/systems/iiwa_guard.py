@@ -1,0 +1,286 @@
+"""``IiwaCommandGuard``: the last system before the iiwa command: a safe joint position or a hold.
+
+It turns the trajectory source's desired state into the joint position command
+that goes to the robot, watching the robot's status (as decoded by pydrake's
+``IiwaStatusReceiver``), and it is the one place that decides what is safe to send:
+
+* no command before a status message has been seen (initializing without one is an error);
+* the command moves at most ``v_max * period`` per period (joint speed limits) and stays
+  ``margin`` inside the joint position limits;
+* a stale status (no new message for ``stale_timeout``) freezes the command where it is;
+  it follows the desired state again only when the status is fresh and the desired
+  position has come back within ``resume_tolerance`` of the frozen command (in practice:
+  at the next trial, whose hold pose is latched from the measured position), so the robot
+  never jumps to catch up.
+
+Freshness is judged by the controller's own clock: a message is new when its timestamp
+differs from the last one seen, and its arrival is the time of the update that saw it.
+The robot's timestamp is never compared with the controller's clock (they are different
+machines).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+
+
+@dataclass(frozen=True)
+class GuardLimits:
+    """What the guard enforces.
+
+    Attributes
+    ----------
+    lower, upper : array, shape (n,)
+        Joint position limits (rad).
+    v_max : array, shape (n,)
+        Joint speed limits (rad/s).
+    period : float
+        Seconds between commands.
+    stale_timeout : float
+        A status older than this (s) freezes the command.
+    margin : float
+        Commands stay this far inside the position limits (rad).
+    resume_tolerance : float
+        After a freeze, follow the desired position again once it is this close (rad, max norm).
+    """
+
+    lower: np.ndarray
+    upper: np.ndarray
+    v_max: np.ndarray
+    period: float
+    stale_timeout: float = 0.1
+    margin: float = math.radians(1.0)
+    resume_tolerance: float = 0.01
+
+    def __post_init__(self):
+        lower, upper, v_max = (np.asarray(a, float).copy() for a in (self.lower, self.upper, self.v_max))
+        n = lower.shape[0]
+        if lower.ndim != 1 or upper.shape != (n,) or v_max.shape != (n,):
+            raise ValueError(f"GuardLimits: lower, upper and v_max must have shape ({n},)")
+        if (upper - lower <= 2 * self.margin).any() or (v_max <= 0).any():
+            raise ValueError("GuardLimits: need upper - lower > 2 margin and v_max > 0")
+        for name in ("period", "stale_timeout", "resume_tolerance"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"GuardLimits.{name} must be positive, got {v!r}")
+        for name, a in (("lower", lower), ("upper", upper), ("v_max", v_max)):
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+        # what guard_step uses, computed once
+        object.__setattr__(self, "q_min", lower + self.margin)
+        object.__setattr__(self, "q_max", upper - self.margin)
+        object.__setattr__(self, "step_max", v_max * self.period)
+
+    @property
+    def n(self) -> int:
+        return int(self.lower.shape[0])
+
+    #: lower + margin, upper - margin, v_max * period (set in __post_init__).
+    q_min: np.ndarray = field(init=False, repr=False, compare=False)
+    q_max: np.ndarray = field(init=False, repr=False, compare=False)
+    step_max: np.ndarray = field(init=False, repr=False, compare=False)
+
+
+@dataclass(frozen=True, eq=False)
+class GuardState:
+    """The guard's state and its ``guard_status`` output.
+
+    Attributes
+    ----------
+    command : array, shape (n,), or None
+        The joint positions being commanded (rad); None before the first status.
+    status_time : float
+        Timestamp of the newest status seen (s, the robot's clock; NaN: none).
+    arrival_time : float
+        Controller time at which that status was first seen (s; NaN: none).
+    holding : bool
+        The command is frozen (the status went stale).
+    limited : int
+        Updates in which a speed or position limit changed the command (a diagnostic).
+    stale_events : int
+        Times the status went stale.
+    """
+
+    command: np.ndarray | None = None
+    status_time: float = float("nan")
+    arrival_time: float = float("nan")
+    holding: bool = False
+    limited: int = 0
+    stale_events: int = 0
+
+    def status_age(self, time: float) -> float:
+        """Seconds since the newest status arrived (inf: none yet)."""
+        return math.inf if math.isnan(self.arrival_time) else time - self.arrival_time
+
+    def to_vector(self, n: int) -> np.ndarray:
+        """The state as the guard's discrete state vector (n + 6,)."""
+        command = self.command if self.command is not None else np.full(n, np.nan)
+        return np.concatenate([command, [self.status_time, self.arrival_time, float(self.holding), self.limited,
+                                         self.stale_events, float(self.command is not None)]])
+
+    @classmethod
+    def from_vector(cls, x: np.ndarray, n: int) -> "GuardState":
+        """Inverse of :meth:`to_vector`."""
+        return cls(np.array(x[:n]) if x[n + 5] > 0.5 else None, float(x[n]), float(x[n + 1]), bool(x[n + 2] > 0.5),
+                   int(x[n + 3]), int(x[n + 4]))
+
+
+def status_received(q_measured: np.ndarray, status_time: float) -> bool:
+    """Is this the content of a real status, not of the default (never received) message?
+
+    ``IiwaStatusReceiver`` turns the default message into zeros: time 0 and all
+    joints at exactly 0.0, which no measured robot reports (and the simulated
+    station's home pose is not zero). The controller's harness also waits for a
+    status before it initializes (:func:`~drake_skills.sim.lcm_controller.receive_first_messages`);
+    this is the second check.
+    """
+    finite = bool(np.isfinite(q_measured).all())
+    return finite and (status_time != 0.0 or bool(q_measured.any()))
+
+
+def guard_step(state: GuardState, time: float, q_measured: np.ndarray, status_time: float, q_desired: np.ndarray,
+               limits: GuardLimits) -> GuardState:
+    """One command period: note a new status, freeze on a stale one, limit and advance the command.
+
+    Parameters
+    ----------
+    state : GuardState
+    time : float
+        Controller time (s).
+    q_measured : array, shape (n,)
+        Joint positions of the newest status (rad).
+    status_time : float
+        Its timestamp (s, the robot's clock; only compared with the previous one).
+    q_desired : array, shape (n,)
+        Joint positions the trajectory source asks for (rad).
+    limits : GuardLimits
+
+    Returns
+    -------
+    GuardState
+    """
+    status_t, arrival = state.status_time, state.arrival_time
+    received = status_received(q_measured, status_time)
+    if received and status_time != status_t:
+        status_t, arrival = float(status_time), float(time)
+    q = state.command
+    if q is None:
+        if not received:
+            return GuardState(None, status_t, arrival, state.holding, state.limited, state.stale_events)
+        q = np.minimum(np.maximum(q_measured, limits.q_min), limits.q_max)
+    stale = not time - arrival <= limits.stale_timeout + 1e-9  # NaN arrival (none yet) is stale
+    holding, stale_events = state.holding, state.stale_events
+    if stale and not holding:
+        holding, stale_events = True, stale_events + 1
+    elif holding and not stale and float(np.max(np.abs(q_desired - q))) <= limits.resume_tolerance:
+        holding = False
+    if holding:
+        return GuardState(q, status_t, arrival, True, state.limited, stale_events)
+    target = np.minimum(np.maximum(q_desired, limits.q_min), limits.q_max)
+    delta = target - q
+    step = np.minimum(np.maximum(delta, -limits.step_max), limits.step_max)
+    changed = not (target == q_desired).all() or not (step == delta).all()
+    return GuardState(q + step, status_t, arrival, False, state.limited + changed, stale_events)
+
+
+class IiwaCommandGuard(LeafSystem):
+    """A limited, stale-safe joint position command from the desired state and the robot's status.
+
+    .. pydrake_system::
+
+        name: IiwaCommandGuard
+        input_ports:
+        - desired_state
+        - position_measured
+        - velocity_estimated
+        - status_time
+        output_ports:
+        - position
+        - measured_state
+        - guard_status
+
+    ``position_measured`` (n,), ``velocity_estimated`` (n,) and ``status_time`` (1,)
+    are the ``IiwaStatusReceiver``'s outputs of the newest ``lcmt_iiwa_status``;
+    ``measured_state`` passes them on as [q; v] (2n,) for the controller, and
+    evaluating it before a status has been received is an error (the receiver would
+    give zeros, and a hold pose latched from them would send the robot to zero).
+    ``position`` (n,) is the command, updated every ``limits.period`` by
+    :func:`guard_step` from ``desired_state`` ([q; v], only q is used) and latched
+    from the measured position at initialization; ``guard_status`` is the
+    :class:`GuardState` (kept as a discrete state vector, so a 200 Hz update copies
+    no Python object). A context reset forgets everything, so the controller resets
+    the guard only together with the robot.
+
+    Parameters
+    ----------
+    limits : GuardLimits
+    channel : str
+        Name of the status channel, for error messages.
+    """
+
+    def __init__(self, limits: GuardLimits, *, channel: str = "IIWA_STATUS"):
+        super().__init__()
+        if not isinstance(limits, GuardLimits):
+            raise ValueError(f"limits must be GuardLimits, got {type(limits).__name__}")
+        self._limits = limits
+        self._channel = channel
+        n = self._n = limits.n
+        self._desired = self.DeclareVectorInputPort("desired_state", 2 * n)
+        self._measured = self.DeclareVectorInputPort("position_measured", n)
+        self._velocity = self.DeclareVectorInputPort("velocity_estimated", n)
+        self._time = self.DeclareVectorInputPort("status_time", 1)
+        self._state = self.DeclareDiscreteState(GuardState().to_vector(n))
+        self.DeclareInitializationDiscreteUpdateEvent(self._initialize)
+        self.DeclarePeriodicDiscreteUpdateEvent(limits.period, 0.0, self._update)
+        deps = {self.discrete_state_ticket(self._state)}
+        self.DeclareVectorOutputPort("position", n, self._calc_position, prerequisites_of_calc=deps)
+        self.DeclareVectorOutputPort("measured_state", 2 * n, self._calc_measured_state,
+                                     prerequisites_of_calc={self._measured.ticket(), self._velocity.ticket(),
+                                                            self._time.ticket()})
+        self.DeclareAbstractOutputPort("guard_status", lambda: AbstractValue.Make(GuardState()),
+                                       self._calc_status, prerequisites_of_calc=deps)
+
+    @property
+    def limits(self) -> GuardLimits:
+        return self._limits
+
+    def guard_state(self, context: Context) -> GuardState:
+        """The guard's state in ``context`` (this system's context)."""
+        return GuardState.from_vector(context.get_discrete_state(self._state).get_value(), self._n)
+
+    def _initialize(self, context: Context, discrete_state: DiscreteValues) -> None:
+        old = self.guard_state(context)
+        if old.command is not None:
+            return  # a new trial of a running controller: keep commanding from where we are
+        q, t = np.asarray(self._measured.Eval(context)), float(self._time.Eval(context)[0])
+        if not status_received(q, t):
+            raise RuntimeError(f"IiwaCommandGuard: no lcmt_iiwa_status received on '{self._channel}'; the "
+                               f"controller must not start before the robot reports")
+        new = replace(guard_step(old, context.get_time(), q, t, q, self._limits), limited=0)
+        discrete_state.get_mutable_vector(self._state).SetFromVector(new.to_vector(self._n))
+
+    def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
+        new = guard_step(self.guard_state(context), context.get_time(), np.asarray(self._measured.Eval(context)),
+                         float(self._time.Eval(context)[0]), np.asarray(self._desired.Eval(context)[:self._n]),
+                         self._limits)
+        discrete_state.get_mutable_vector(self._state).SetFromVector(new.to_vector(self._n))
+
+    def _calc_position(self, context: Context, output: BasicVector) -> None:
+        x = context.get_discrete_state(self._state).get_value()
+        if x[self._n + 5] < 0.5:
+            raise RuntimeError(f"IiwaCommandGuard: no command yet (no lcmt_iiwa_status on '{self._channel}')")
+        output.SetFromVector(x[:self._n])
+
+    def _calc_measured_state(self, context: Context, output: BasicVector) -> None:
+        q = np.asarray(self._measured.Eval(context))
+        if not status_received(q, float(self._time.Eval(context)[0])):
+            raise RuntimeError(f"IiwaCommandGuard: no lcmt_iiwa_status received on '{self._channel}' (the measured "
+                               f"state would be zeros); deliver a status before the controller initializes")
+        output.SetFromVector(np.concatenate([q, self._velocity.Eval(context)]))
+
+    def _calc_status(self, context: Context, output: AbstractValue) -> None:
+        output.set_value(self.guard_state(context))

@@ -1,0 +1,259 @@
+"""The brute-force reference: Algorithm 1 and recognition as written before they were made flat in K (issue 19).
+
+A plain copy of the straightforward code (a list of components, every distance and
+every prefix statistic computed component by component) that the optimized library
+must agree with: same components, same updates, same answers. Used by
+``test_scale.py``; importable as ``brute_force`` (tests/ is on the path).
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import logsumexp
+
+from drake_skills.library.algorithm import ComponentModel
+from drake_skills.library.novelty import chi2_ppf
+from drake_skills.library.scale import Cluster, SharedScale, gating_covariance, observation_noise
+from drake_skills.promp.basis import ridge_weights
+from drake_skills.promp.interaction import prefix_statistics
+
+_LOG_2PI = np.log(2.0 * np.pi)
+#: The phases prefix recognition tries (1/20 ... 1) and its band around the path-length guess.
+PHASE_GRID = tuple(np.round(np.arange(1, 21) / 20.0, 6))
+PHASE_BAND = 1.5
+
+
+def _metric(scale, h, cfg):
+    cov = gating_covariance(scale, h, prior_scale=cfg.prior_scale, prior_strength=cfg.prior_strength,
+                            shrinkage=cfg.shrinkage, prior_floor=cfg.prior_floor)
+    L = np.linalg.cholesky(cov)
+    return cov, np.linalg.inv(L), float(2.0 * np.sum(np.log(np.diag(L))))
+
+
+def _scores(w_h, means, support, metric):
+    cov, Linv, logdet = metric
+    h = w_h.shape[0]
+    inflate = 1.0 + 1.0 / support
+    diff = means @ Linv.T - w_h @ Linv.T
+    d2 = np.einsum("ij,ij->i", diff, diff) / inflate
+    return -0.5 * (h * _LOG_2PI + logdet + h * np.log(inflate) + d2), d2
+
+
+def _resp(logp, support, mask=None):
+    a = logp + np.log(support / support.sum())
+    if mask is not None:
+        a = np.where(mask, a, -np.inf)
+    if not np.isfinite(a).any():
+        return np.zeros_like(a)
+    return np.exp(a - logsumexp(a))
+
+
+class Reference:
+    """The library's state as a list of :class:`ComponentModel`, updated by the original loop."""
+
+    def __init__(self, config, rule, n_human):
+        self.cfg, self.rule, self.h = config, rule, n_human
+        self.items: list[ComponentModel] = []
+        self.scale: SharedScale | None = None
+        self.next_id = 0
+        self.n_seen = 0
+
+    # arrays of the current items
+    def _means(self, items=None):
+        items = self.items if items is None else items
+        return np.array([c.mean[:self.h] for c in items]).reshape(len(items), self.h)
+
+    def _support(self, items=None):
+        return np.array([c.support for c in (self.items if items is None else items)])
+
+    def partial_fit(self, w, duration, path_length, fit_residual) -> dict:
+        cfg, rule, h = self.cfg, self.rule, self.h
+        n = self.n_seen
+        scale = (self.scale if self.scale is not None else SharedScale.empty(w.shape[0])).count(w, fit_residual)
+        items = list(self.items)
+        next_id = self.next_id
+        out = dict(recognized=None, created=[], updated=[], merged=[], split=[], deleted=[], responsibilities={},
+                   subcluster={})
+        changed = set()
+        novel = True
+        if items:
+            metric = _metric(scale, h, cfg)
+            logp, d2 = _scores(w[:h], self._means(items), self._support(items), metric)
+            fits = ~rule.novel(logp, d2, h)
+            novel = not fits.any()
+        if novel:
+            cl = Cluster.of_sample(w, duration, path_length)
+            items.append(ComponentModel(next_id, n, cl, (cl, None)))
+            out["created"].append(next_id)
+            changed.add(next_id)
+            next_id += 1
+        else:
+            support = self._support(items)
+            lam = _resp(logp, support, fits)
+            out["recognized"] = items[int(np.argmax(lam))].id
+            out["responsibilities"] = {c.id: float(v) for c, v in zip(items, lam)}
+            Linv = metric[1]
+            zw = w[:h] @ Linv.T
+            old = list(items)
+            for i in np.flatnonzero(lam >= 1e-3):
+                c, v = old[i], float(lam[i])
+                cluster, g = c.cluster.add(w, v, duration, path_length)
+                scale = scale.with_scatter(g, +1.0, v)
+                a, b = c.subclusters
+                if b is None:
+                    j, b = 1, Cluster.of_sample(w, duration, path_length, support=v)
+                else:
+                    da = a.mean[:h] @ Linv.T - zw
+                    db = b.mean[:h] @ Linv.T - zw
+                    j = int(db @ db < da @ da)
+                    if j == 0:
+                        a = a.add(w, v, duration, path_length)[0]
+                    else:
+                        b = b.add(w, v, duration, path_length)[0]
+                items[i] = ComponentModel(c.id, c.created, cluster, (a, b))
+                out["updated"].append(c.id)
+                out["subcluster"][c.id] = j
+                changed.add(c.id)
+        # merge
+        while len(items) > 1 and changed:
+            metric = _metric(scale, h, cfg)
+            Z = self._means(items) @ metric[1].T
+            support = self._support(items)
+            created = np.array([c.created for c in items])
+            best = None
+            for cid in sorted(changed):
+                i = [c.id for c in items].index(cid)
+                diff = Z - Z[i]
+                d2m = np.einsum("ij,ij->i", diff, diff) / (1.0 / support + 1.0 / support[i])
+                d2m[i] = np.inf
+                if cfg.merge_min_age > 0:
+                    ages = (n + 1) - np.minimum(created, created[i])
+                    d2m = np.where(ages > cfg.merge_min_age, d2m, np.inf)
+                score = rule.merge_scores(d2m, np.maximum(support, support[i]), 1.0 / support + 1.0 / support[i],
+                                          metric[2], h)
+                j = int(np.argmin(score))
+                if score[j] < 1.0 and (best is None or score[j] < best[0]):
+                    best = (float(score[j]), i, j)
+            if best is None:
+                break
+            _, i, j = best
+            a, b = items[i], items[j]
+            keep, gone = (a, b) if (a.support, -a.id) >= (b.support, -b.id) else (b, a)
+            pooled, g = keep.cluster.pool(gone.cluster)
+            scale = scale.with_scatter(g, +1.0, 1.0)
+            new = ComponentModel(keep.id, min(keep.created, gone.created), pooled, (keep.cluster, gone.cluster))
+            items = [new if c.id == keep.id else c for c in items if c.id != gone.id]
+            out["merged"].append((keep.id, gone.id))
+            changed = (changed - {gone.id}) | {keep.id}
+        # split
+        if items:
+            metric = _metric(scale, h, cfg)
+            K = len(items)
+            sm, ss = np.zeros((K, 2, h)), np.zeros((K, 2))
+            for k, c in enumerate(items):
+                a, b = c.subclusters
+                sm[k, 0], ss[k, 0] = a.mean[:h], a.support
+                if b is not None:
+                    sm[k, 1], ss[k, 1] = b.mean[:h], b.support
+            sa, sb = ss[:, 0], ss[:, 1]
+            both = sb > 0
+            if both.any():
+                dz = (sm[:, 0] - sm[:, 1]) @ metric[1].T
+                d2s = np.where(both, np.einsum("ij,ij->i", dz, dz) / (1.0 / sa + 1.0 / np.where(both, sb, 1.0)), 0.0)
+                for i in np.flatnonzero(rule.splits(d2s, h) & both):
+                    c = items[int(i)]
+                    a, b = c.subclusters
+                    g = np.sqrt(a.support * b.support / c.support) * (a.mean - b.mean)
+                    scale = scale.with_scatter(g, -1.0, -1.0)
+                    items[int(i)] = ComponentModel(c.id, c.created, a, (a, None))
+                    items.append(ComponentModel(next_id, c.created, b, (b, None)))
+                    out["split"].append((c.id, next_id))
+                    next_id += 1
+        # delete
+        K = len(items)
+        min_age = cfg.delete_min_age * max(1.0, K / 5.0)
+        kept = []
+        for c in items:
+            if (n + 1) - c.created > min_age and c.support <= cfg.delete_min_support:
+                scale = scale.with_scatter(c.cluster.factor, -1.0, -(c.support - 1.0))
+                out["deleted"].append(c.id)
+            else:
+                kept.append(c)
+        self.items, self.scale, self.next_id, self.n_seen = kept, scale, next_id, n + 1
+        return {k: tuple(v) if isinstance(v, list) else v for k, v in out.items()}
+
+    # ------------------------------------------------------------- recognition
+    def _decide(self, logp, d2, dof, phases, has_robot, shared_cov):
+        cfg = self.cfg
+        support = self._support()
+        fits = ~self.rule.novel(logp, d2, dof)
+        resp = _resp(logp, support)
+        post = _resp(logp, support, fits)
+        ids = tuple(c.id for c in self.items)
+        best = int(np.argmax(post))
+        if not fits.any():
+            status, comp = "unknown", None
+        elif post[best] >= 1.0 - cfg.decision_risk or \
+                post[self._same(best, post > 0, has_robot, shared_cov)].sum() >= 1.0 - cfg.decision_risk:
+            status, comp = "skill", ids[best]
+        else:
+            status, comp = "undecided", None
+        return dict(component=comp, ids=ids, responsibilities=resp, log_likelihoods=logp, mahalanobis_sq=d2,
+                    dof=dof, status=status, phases=phases, posterior=post)
+
+    def _same(self, best, candidates, has_robot, shared_cov):
+        h = self.h
+        support = self._support()
+        idx = np.flatnonzero(candidates)
+        out = np.zeros(len(self.items), bool)
+        out[best] = True
+        others = idx[idx != best]
+        if not others.size:
+            return out
+        block = slice(h, None) if has_robot else slice(0, h)
+        S = shared_cov[block, block] * (1.0 + 1.0 / support[best])
+        Linv = np.linalg.inv(np.linalg.cholesky(S))
+        mb = self.items[best].mean[block]
+        diff = np.stack([self.items[j].mean[block] - mb for j in others]) @ Linv.T
+        d2 = np.einsum("ij,ij->i", diff, diff)
+        out[others] = d2 <= chi2_ppf(self.cfg.novelty_quantile, S.shape[0])
+        return out
+
+    def _noise(self):
+        return observation_noise(self.scale, self.cfg.observation_noise)
+
+    def recognize_fixed(self, y, observed_fraction, has_robot, shared_cov) -> dict:
+        cfg, h = self.cfg, self.h
+        metric = _metric(self.scale, h, cfg)
+        K = len(self.items)
+        if observed_fraction == 1:
+            w_h = ridge_weights(y, cfg.basis_human, cfg.ridge)
+            logp, d2 = _scores(w_h, self._means(), self._support(), metric)
+            return self._decide(logp, d2, h, np.ones(K), has_robot, shared_cov)
+        Phi_o = cfg.basis_human.phi(np.linspace(0.0, observed_fraction, y.shape[0]))
+        logp, d2, dof = np.empty(K), np.empty(K), np.empty(K)
+        for i, c in enumerate(self.items):
+            logp[i], d2[i], dof[i] = prefix_statistics(c.mean[:h], metric[0] * (1.0 + 1.0 / c.support), Phi_o, y,
+                                                       self._noise())
+        return self._decide(logp, d2, dof, np.full(K, observed_fraction), has_robot, shared_cov)
+
+    def recognize_prefix(self, ys, length, has_robot, shared_cov) -> dict:
+        """``ys``: the observed path resampled as the library resamples it; ``length``: its path length."""
+        cfg, h = self.cfg, self.h
+        metric = _metric(self.scale, h, cfg)
+        grid = np.array(PHASE_GRID)
+        K = len(self.items)
+        logp, d2, dof, phases = np.empty(K), np.empty(K), np.empty(K), np.empty(K)
+        m = ys.shape[0]
+        for i, c in enumerate(self.items):
+            g = min(max(length / max(c.cluster.path_length, 1e-12), grid[0]), 1.0)
+            band = [f for f in grid if g / PHASE_BAND - 1e-12 <= f <= min(g * PHASE_BAND, 1.0) + 1e-12]
+            nearest = float(grid[np.abs(grid - g).argmin()])
+            if nearest not in band:
+                band = sorted(band + [nearest])
+            stats = [prefix_statistics(c.mean[:h], metric[0] * (1.0 + 1.0 / c.support),
+                                       cfg.basis_human.phi(np.linspace(0.0, f, m)), ys, self._noise()) for f in band]
+            lps = np.array([st[0] for st in stats])
+            j = int(np.argmax(lps))
+            logp[i] = logsumexp(lps) - np.log(len(band))  # the phase marginalized over the band
+            d2[i], dof[i], phases[i] = stats[j][1], stats[j][2], band[j]
+        return self._decide(logp, d2, dof, phases, has_robot, shared_cov)

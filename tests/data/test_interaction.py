@@ -1,0 +1,125 @@
+"""Interactions stored back to back in one npz (the buetepage_hr layout): the real file, and every error naming the file."""
+import numpy as np
+import pytest
+
+from drake_skills.data.interaction import COLUMNS, load_interactions
+from shared_data import require
+
+
+def _arrays(m=3, T=20, seed=0, robot=True):
+    rng = np.random.default_rng(seed)
+    lengths = T + np.arange(m)
+    offsets = np.concatenate([[0], np.cumsum(lengths)])
+    n = int(offsets[-1])
+    out = {"human": rng.normal(size=(n, 9)), "offsets": offsets,
+           "task": np.array(["a", "b", "a"][:m]), "split": np.array(["train", "train", "test"][:m]),
+           "active_end": (lengths - 3).astype(np.int64)}
+    if robot:
+        out["robot"] = rng.normal(size=(n, 7))
+    return out
+
+
+def _write(path, **arrays):
+    np.savez(path, **arrays)
+    return path
+
+
+def test_real_file_has_41_interactions_in_the_sources_split():
+    demos = load_interactions(require())
+    assert len(demos) == 41 and len(demos.train) == 32 and len(demos.test) == 9
+    assert demos.tasks == ("hand_wave", "hand_shake", "rocket", "parachute")
+    for task in demos.tasks:
+        assert sum(d.task == task for d in demos.train) == 8
+    d = demos[17]
+    assert d.name == "buetepage_hr:017:train" and d.task == "rocket"
+    assert d.human.shape == (495, 3) and d.robot.shape == (495, 7)
+    np.testing.assert_allclose(np.diff(d.t), 0.01, rtol=1e-12)  # 100 Hz by default
+    assert demos.split[17] == "train" and demos.active_end[17] == 470
+    assert all(d.name.endswith(":test") for d in demos.test)
+    arm = load_interactions(require(), columns="arm")
+    assert arm[17].human.shape == (495, 9)
+    np.testing.assert_array_equal(arm[17].human[:, 6:9], d.human)  # the hand is columns 6:9 of the arm
+
+
+def test_columns_rate_and_names_follow_the_arguments(tmp_path):
+    a = _arrays()
+    path = _write(tmp_path / "x.npz", **a)
+    demos = load_interactions(path, columns=[0, 4], rate_hz=50.0)
+    assert [d.name for d in demos] == ["x:000:train", "x:001:train", "x:002:test"]
+    np.testing.assert_array_equal(demos[1].human, a["human"][20:41][:, [0, 4]])
+    np.testing.assert_array_equal(demos[1].robot, a["robot"][20:41])
+    assert demos[2].t[-1] == pytest.approx(21 / 50.0)
+    assert demos.columns == (0, 4) and demos.rate_hz == 50.0
+    assert [d.name for d in demos.subset("test")] == ["x:002:test"]
+    assert set(COLUMNS) >= {"hand", "arm"}
+
+
+def test_robot_split_and_active_end_are_optional(tmp_path):
+    a = _arrays(robot=False)
+    del a["split"], a["active_end"], a["task"]
+    demos = load_interactions(_write(tmp_path / "y.npz", **a))
+    assert [d.name for d in demos] == ["y:000", "y:001", "y:002"]
+    assert all(d.robot is None and d.task is None for d in demos)
+    assert demos.split == (None,) * 3 and demos.active_end == (None,) * 3
+    with pytest.raises(ValueError, match=r"y\.npz.*no 'split'"):
+        demos.train
+
+
+def _bad(tmp_path):
+    a = _arrays()
+    cases = {}
+
+    def case(name, match, **change):
+        b = dict(a)
+        for k, v in change.items():
+            if v is None:
+                del b[k]
+            else:
+                b[k] = v
+        cases[name] = (b, match)
+
+    case("no_offsets", r"missing key\(s\) \['offsets'\]", offsets=None)
+    case("no_human", r"missing key\(s\) \['human'\]", human=None)
+    dec = a["offsets"].copy()
+    dec[1], dec[2] = dec[2], dec[1]
+    case("offsets_not_increasing", r"'offsets' is not increasing: offsets\[1\]=41 then offsets\[2\]=20", offsets=dec)
+    short = a["offsets"].copy()
+    short[-1] -= 1
+    case("offsets_short", r"'offsets' must run from 0 to the 63 rows", offsets=short)
+    case("robot_rows", r"'robot' has 62 rows but 'human' has 63", robot=a["robot"][:-1])
+    case("task_length", r"'task' has shape \(2,\), expected \(3,\)", task=a["task"][:2])
+    case("split_value", r"'split' holds \['val'\]", split=np.array(["train", "val", "test"]))
+    case("active_end_outside", r"active_end\[1\] = 99 is outside interaction 1 \(21 samples\)",
+         active_end=np.array([5, 99, 5]))
+    nan = a["human"].copy()
+    nan[25:27, 7] = np.nan
+    case("nan", r"'human' has NaN/inf in interaction 1 at rows 5\.\.6", human=nan)
+    case("human_1d", r"'human' must be a 2-D numeric array", human=a["human"][:, 0])
+    return cases
+
+
+@pytest.mark.parametrize("name", list(_bad(None)))
+def test_bad_file_is_an_error_naming_the_file_and_the_problem(tmp_path, name):
+    arrays, match = _bad(tmp_path)[name]
+    path = _write(tmp_path / f"{name}.npz", **arrays)
+    with pytest.raises(ValueError, match=match) as exc:
+        load_interactions(path)
+    assert f"{name}.npz" in str(exc.value)
+
+
+def test_columns_out_of_range_not_an_npz_and_pickles_are_rejected(tmp_path):
+    path = _write(tmp_path / "ok.npz", **_arrays())
+    with pytest.raises(ValueError, match=r"ok\.npz.*columns \[9\] out of range: human has 9 columns"):
+        load_interactions(path, columns=[0, 9])
+    with pytest.raises(ValueError, match=r"ok\.npz.*unknown column selection 'leg'"):
+        load_interactions(path, columns="leg")
+    text = tmp_path / "t.npz"
+    text.write_text("not a zip")
+    with pytest.raises(ValueError, match=r"t\.npz.*not an npz"):
+        load_interactions(text)
+    a = _arrays()
+    a["task"] = np.array(["a", None, "b"], dtype=object)
+    with pytest.raises(ValueError, match=r"obj\.npz.*pickled data"):
+        load_interactions(_write(tmp_path / "obj.npz", **a))
+    with pytest.raises(FileNotFoundError, match="nope.npz"):
+        load_interactions(tmp_path / "nope.npz")

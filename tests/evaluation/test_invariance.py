@@ -1,0 +1,115 @@
+"""Invariance (issue 11 goals): the same real interactions in other units, rates, speeds and noise.
+
+The default library learns the 32 training interactions of buetepage_hr.npz (hand columns) in
+3 random orders, once as recorded and once transformed, and recognizes the 9 test
+interactions (observed_fraction=1). A *decision* is the status and the task label of the
+recognized component. Tolerances, per order:
+
+* millimetres with the matching workspace: identical (the same updates after every
+  demonstration, the same components and decisions, d^2 within 1e-9 relative);
+* resampled from 150 Hz to 30 Hz (every 5th sample; the file's rate is not stated, 150 Hz is
+  assumed here so that the rates are the issue's) and played 2x slower (interpolated at the
+  same rate, twice the samples): identical decisions, component count within 1 (measured over
+  5 orders: equal in 3 of 5 at 30 Hz and in 4 of 5 at half speed, never off by more than 1);
+* 2 mm of extra tracker noise: NOT invariant, which the goal asks for. Measured over 5 orders:
+  the component count moves from 6-8 to 4-12, the path length grows 14 % (78.0 to 89.2
+  normalized units for the first interaction) and the learned within-skill scale widens, so
+  the far rocket test interaction (d^2 ~150 against a threshold of 47) comes within reach
+  (d^2 22-34) and is recognized. What holds, and is asserted: no decision becomes wrong and
+  every interaction recognized without the noise keeps its decision.
+"""
+import numpy as np
+import pytest
+
+from drake_skills.data.demonstration import Demonstration
+from drake_skills.data.interaction import load_interactions
+from drake_skills.data.workspace import Workspace
+from drake_skills.evaluation.interaction import workspace_of
+from drake_skills.evaluation.labeled import LabeledLibrary
+from drake_skills.library.config import LibraryConfig
+from shared_data import require
+
+ORDERS = (0, 1, 2)
+
+
+@pytest.fixture(scope="module")
+def interactions():
+    return load_interactions(require(), rate_hz=150.0)
+
+
+@pytest.fixture(scope="module")
+def baseline(interactions):
+    """The recorded interactions learned in each order: (order, result of _learn)."""
+    train, test = interactions.train, interactions.test
+    ws = workspace_of(train)
+    orders = [np.random.default_rng(o).permutation(len(train)) for o in ORDERS]
+    return [(order, _learn(train, test, ws, order)) for order in orders]
+
+
+def _learn(train, test, ws, order):
+    lab = LabeledLibrary(LibraryConfig(workspace=ws))
+    events = []
+    for j in order:
+        u = lab.teach(train[j])
+        events.append((u.recognized is None, len(u.merged), len(u.deleted), len(u.split)))
+    recs = [lab.library.recognize(d.human, observed_fraction=1.0) for d in test]
+    decisions = [(r.status, lab.label_of(r.component)) for r in recs]
+    d2 = np.array([r.mahalanobis_sq.min() for r in recs])
+    return lab.library.n_components, events, decisions, d2
+
+
+def _like(d, t, human, robot):
+    return Demonstration(t=t, human=human, robot=robot, task=d.task, name=d.name)
+
+
+def _millimetres(d):
+    return _like(d, d.t, 1000.0 * d.human, d.robot)
+
+
+def _every_fifth(d):
+    return _like(d, d.t[::5], d.human[::5], d.robot[::5])
+
+
+def _half_speed(d):
+    t = np.arange(2 * d.n_samples - 1) * (d.t[1] - d.t[0])
+
+    def interp(y):
+        return np.stack([np.interp(t, 2 * d.t, y[:, k]) for k in range(y.shape[1])], axis=1)
+
+    return _like(d, t, interp(d.human), interp(d.robot))
+
+
+def _runs(interactions, baseline, transform, ws):
+    train = [transform(d) for d in interactions.train]
+    test = [transform(d) for d in interactions.test]
+    ws = ws or workspace_of(interactions.train)
+    return [(base, _learn(train, test, ws, order)) for order, base in baseline]
+
+
+def test_millimetres_with_the_matching_workspace_change_nothing(interactions, baseline):
+    ws = workspace_of(interactions.train)
+    for (K, ev, dec, d2), (K2, ev2, dec2, d22) in _runs(interactions, baseline, _millimetres,
+                                                         Workspace(1000.0 * ws.lower, 1000.0 * ws.upper)):
+        assert (K2, ev2, dec2) == (K, ev, dec)
+        np.testing.assert_allclose(d22, d2, rtol=1e-9)
+
+
+@pytest.mark.parametrize("transform", [_every_fifth, _half_speed], ids=["150Hz_to_30Hz", "2x_slower"])
+def test_sampling_rate_and_speed_keep_the_decisions(interactions, baseline, transform):
+    for (K, ev, dec, d2), (K2, ev2, dec2, d22) in _runs(interactions, baseline, transform, None):
+        assert dec2 == dec
+        assert abs(K2 - K) <= 1, (K, K2)
+
+
+def test_tracker_noise_of_2mm_keeps_every_recognized_decision_and_adds_no_wrong_answer(interactions, baseline):
+    rng = np.random.default_rng(2)
+
+    def noisy(d):
+        return _like(d, d.t, d.human + rng.normal(0.0, 0.002, d.human.shape), d.robot)
+
+    tasks = [d.task for d in interactions.test]
+    for (K, ev, dec, d2), (K2, ev2, dec2, d22) in _runs(interactions, baseline, noisy, None):
+        for (status, label), (status2, label2), task in zip(dec, dec2, tasks):
+            assert status2 != "skill" or label2 == task  # no wrong answer with the noise
+            if status == "skill":
+                assert (status2, label2) == (status, label)

@@ -1,0 +1,63 @@
+"""The scale experiment (issue 19) at reduced size: tables, the library finds the skills it is shown, CLI."""
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from drake_skills.evaluation.scale import OUTCOMES, ScaleSettings, evaluate_scale
+
+
+@pytest.fixture(scope="module")
+def report():
+    return evaluate_scale(ScaleSettings.quick(seed=1), progress=False)
+
+
+def test_synthetic_libraries_find_one_component_per_skill_and_recognize_new_demonstrations(report):
+    t = report.tables["synthetic"]
+    assert t.column("skills") == [10, 10, 30, 30] and t.column("order") == ["random", "row"] * 2
+    assert t.column("components") == t.column("skills")
+    for row in report.summary["synthetic"]:
+        parts = [row[k] for k in OUTCOMES]
+        assert sum(parts) == pytest.approx(1.0, abs=1e-12)
+        assert row["correct"] >= 0.95 and row["wrong"] == 0.0  # skills 1.5 apart, scatter 0.03
+        assert row["ms_update"] > 0 and row["ms_recognize"] > 0 and row["ms_prefix"] > 0
+
+
+def test_lasa_in_one_library_is_scored_on_the_held_out_demonstrations(report):
+    t = report.tables["lasa"]
+    assert t.column("order") == ["order 0", "mean"]
+    s = report.summary["lasa"]
+    assert s["shapes"] == 6
+    assert sum(s[f"{k}_mean"] for k in OUTCOMES) == pytest.approx(1.0, abs=1e-12)
+    assert 5 <= s["components_mean"] <= 8 and s["correct_mean"] >= 0.8, s
+    assert "scale" in report.figures
+
+
+def test_the_same_seed_gives_the_same_libraries_and_answers(report):
+    again = evaluate_scale(replace(ScaleSettings.quick(seed=1), lasa_orders=0, sizes=(10,)), progress=False,
+                           figures=False)
+    first = [r for r in report.summary["synthetic"] if r["skills"] == 10]
+    for a, b in zip(first, again.summary["synthetic"]):
+        assert {k: a[k] for k in ("components", *OUTCOMES)} == {k: b[k] for k in ("components", *OUTCOMES)}
+
+
+def test_bad_settings_fail_before_any_work():
+    with pytest.raises(ValueError, match="orders"):
+        replace(ScaleSettings.quick(), orders=("sideways",))
+    with pytest.raises(ValueError, match="lasa_train"):
+        replace(ScaleSettings.quick(), lasa_train=7)
+    with pytest.raises(ValueError, match="sizes"):
+        replace(ScaleSettings.quick(), sizes=(1,))
+
+
+def test_cli_writes_the_tables_the_plot_and_the_summary(tmp_path):
+    from drake_skills.cli import main
+
+    out = tmp_path / "scale"
+    assert main(["eval", "scale", "--quick", "--orders", "1", "--sizes", "10", "--no-progress", "--out", str(out)]) == 0
+    for name in ("lasa.md", "lasa.csv", "synthetic.md", "synthetic.csv", "scale.png", "summary.json"):
+        assert (out / name).exists(), name
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["command"].startswith("drake-skills eval scale") and summary["synthetic"][0]["skills"] == 10
+    assert np.isfinite(summary["lasa"]["components_mean"])

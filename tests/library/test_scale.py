@@ -1,0 +1,247 @@
+"""The library at scale (issue 19): the optimized code agrees with the brute-force reference, and big files are safe.
+
+Speed is shown by ``drake-skills bench --suite scale`` (BENCHMARKS.md), never here.
+"""
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from drake_skills import LibraryConfig, SkillLibrary
+from drake_skills.data.synthetic import skill_bank
+from drake_skills.library import recognition
+from drake_skills.library.novelty import novelty_rule
+
+from brute_force import Reference
+
+
+def _stream(K, order, seed, reps=3):
+    rng = np.random.default_rng(seed)
+    bank = skill_bank(K, rng)
+    labels = np.repeat(np.arange(K), reps)
+    if order == "random":
+        labels = rng.permutation(labels)
+    return bank, [bank.demo(int(k), rng) for k in labels], rng
+
+
+def _assert_same_state(lib: SkillLibrary, ref: Reference):
+    comps = lib.state().components
+    assert [c.id for c in comps] == [c.id for c in ref.items]
+    for c, r in zip(comps, ref.items):
+        assert lib.n_seen - c.age == r.created
+        np.testing.assert_array_equal(c.mean, r.mean)
+        np.testing.assert_array_equal(c.cluster.factor, r.cluster.factor)
+        assert c.support == r.support
+        for s, t in zip(c.subclusters, r.subclusters):
+            assert (s is None) == (t is None)
+            if s is not None:
+                np.testing.assert_array_equal(s.mean, t.mean)
+                assert s.support == t.support
+    sc = lib.state().scale
+    np.testing.assert_array_equal(sc.pooled, ref.scale.pooled)
+    assert sc.dof == ref.scale.dof and lib.state().next_id == ref.next_id
+
+
+def _learn_both(demos, config=None):
+    lib = SkillLibrary(config)
+    ref = None
+    for d in demos:
+        w, path = lib.encode(d), lib.path_length(d.human)
+        h = d.dim_human * lib.config.n_basis_human
+        if ref is None:
+            ref = Reference(lib.config, novelty_rule(lib.config), h)
+        y = lib.human_samples(d.human)
+        fit = lib.config.basis_human.phi_uniform(y.shape[0]) @ w[:h].reshape(d.dim_human, -1).T
+        expect = ref.partial_fit(w, d.duration, path, float(np.mean((y - fit) ** 2)))
+        got = lib.partial_fit(d)
+        for key in ("recognized", "created", "updated", "merged", "split", "deleted", "subcluster"):
+            assert getattr(got, key) == expect[key], key
+        assert dict(got.responsibilities) == expect["responsibilities"]
+    return lib, ref
+
+
+@pytest.mark.parametrize("order", ["random", "row"])
+def test_partial_fit_builds_the_same_library_as_the_brute_force_reference(order):
+    """40 synthetic skills, 3 demonstrations each: every update, every component and the scale agree exactly."""
+    _, demos, _ = _stream(40, order, seed=1)
+    lib, ref = _learn_both(demos)
+    _assert_same_state(lib, ref)
+    assert lib.n_components == 40  # and the library finds the skills it was shown
+
+
+@pytest.fixture(scope="module")
+def letters():
+    from drake_skills.data.lasa import LASA_SHAPES, lasa_workspace, load_lasa
+
+    demos = load_lasa(LASA_SHAPES[:12], n_demos=4, subsample=4)
+    return demos, lasa_workspace(demos)
+
+
+def test_partial_fit_matches_the_reference_through_merges_splits_and_deletions(letters):
+    """12 letters, a wide prior (early merges that split later) and a short deletion age: every branch agrees."""
+    demos, ws = letters
+    order = np.random.default_rng(1).permutation(len(demos))
+    cfg = LibraryConfig(workspace=ws, prior_scale=0.6, delete_min_age=2)
+    lib, ref = _learn_both([demos[j] for j in order], cfg)
+    events = {e["event"] for e in lib.history}
+    assert {"created", "merged", "split", "deleted"} <= events, events
+    _assert_same_state(lib, ref)
+
+
+def _assert_same_answer(rec, expect, *, exact_arrays=True):
+    """Same status, component and posterior; the same statistics for every component scored.
+
+    A pruned prefix recognition does not score the components its bound rules out
+    (log-likelihood -inf): those must be ones the reference finds novel.
+    """
+    assert rec.status == expect["status"] and rec.component == expect["component"]
+    assert rec.ids == expect["ids"]
+    np.testing.assert_array_equal(rec.posterior > 0, expect["posterior"] > 0)
+    tol = dict(rtol=0, atol=0) if exact_arrays else dict(rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(rec.posterior, expect["posterior"], **tol)
+    scored = np.isfinite(rec.log_likelihoods)
+    assert not (expect["posterior"][~scored] > 0).any()
+    np.testing.assert_allclose(rec.log_likelihoods[scored], expect["log_likelihoods"][scored], **tol)
+    np.testing.assert_allclose(rec.mahalanobis_sq[scored], expect["mahalanobis_sq"][scored],
+                               **(tol if exact_arrays else dict(rtol=1e-8, atol=1e-6)))
+    np.testing.assert_allclose(np.broadcast_to(rec.dof, scored.shape)[scored],
+                               np.broadcast_to(expect["dof"], scored.shape)[scored], **tol)
+    np.testing.assert_array_equal(rec.phases[scored], expect["phases"][scored])
+    return scored
+
+
+def _probes(bank, rng, n=12):
+    """Whole motions and prefixes of taught skills, and motions of a skill never taught."""
+    other = skill_bank(1, rng).demo(0, rng).human
+    out = [other, other[:40]]
+    for i in range(n):
+        h = bank.demo(int(rng.integers(bank.n_skills)), rng).human
+        out += [h, h[: int(len(h) * rng.uniform(0.25, 0.9))]]
+    return out
+
+
+def _reference_answers(lib, ref, human):
+    """Whole-motion and prefix answers of the reference for one motion."""
+    shared = lib.shared_covariance("expert")
+    y_whole = lib.human_samples(human)
+    ys, _ = _prefix_problem(lib, human)
+    return (ref.recognize_fixed(y_whole, 1.0, lib.has_robot, shared),
+            ref.recognize_prefix(ys, lib._normalized(human).length, lib.has_robot, shared))
+
+
+@pytest.fixture(scope="module")
+def synthetic_library():
+    bank, demos, rng = _stream(40, "random", seed=3)
+    lib, ref = _learn_both(demos)
+    return bank, lib, ref, rng
+
+
+def test_recognize_answers_as_the_brute_force_reference(synthetic_library, monkeypatch):
+    """Whole motions (one matrix product) and prefixes (all pairs batched, none pruned): same answers and statistics."""
+    monkeypatch.setattr(recognition, "PRUNE_MIN_COMPONENTS", 10 ** 9)
+    bank, lib, ref, rng = synthetic_library
+    statuses = set()
+    for human in _probes(bank, rng, n=7):
+        whole, prefix = _reference_answers(lib, ref, human)
+        _assert_same_answer(lib.recognize(human, observed_fraction=1.0), whole)
+        assert _assert_same_answer(lib.recognize(human), prefix, exact_arrays=False).all()
+        statuses |= {whole["status"], prefix["status"]}
+    assert {"skill", "unknown"} <= statuses
+
+
+def test_pruned_prefix_recognition_answers_as_brute_force_and_scores_few_components(synthetic_library):
+    """40 components (above PRUNE_MIN_COMPONENTS): the bound rules out most, and every answer is the reference's."""
+    bank, lib, ref, rng = synthetic_library
+    assert lib.n_components > recognition.PRUNE_MIN_COMPONENTS
+    n_scored = []
+    for human in _probes(bank, rng, n=10):
+        _, prefix = _reference_answers(lib, ref, human)
+        n_scored.append(_assert_same_answer(lib.recognize(human), prefix, exact_arrays=False).sum())
+        fraction = float(rng.uniform(0.3, 0.9))
+        part = human[: int(len(human) * fraction)]
+        y = lib.human_samples(part, observed_fraction=fraction)
+        expect = ref.recognize_fixed(y, fraction, lib.has_robot, lib.shared_covariance("expert"))
+        _assert_same_answer(lib.recognize(part, observed_fraction=fraction), expect, exact_arrays=False)
+    assert np.median(n_scored) <= 5, n_scored
+
+
+@pytest.mark.parametrize("prune", [False, True])
+def test_recognize_answers_as_the_reference_on_letters_with_undecided_answers(letters, prune, monkeypatch):
+    """Letters: big fit residuals and close skills; with the pruning forced on, still the reference's answers."""
+    monkeypatch.setattr(recognition, "PRUNE_MIN_COMPONENTS", 0 if prune else 10 ** 9)
+    demos, ws = letters
+    rng = np.random.default_rng(4)
+    order = rng.permutation(len(demos))
+    train, test = order[:30], order[30:]
+    lib, ref = _learn_both([demos[j] for j in train], LibraryConfig(workspace=ws))
+    statuses, scored = set(), []
+    for j in test:
+        h = demos[j].human
+        for k in (len(h), len(h) // 2, len(h) // 4)[: 3 if prune else 2]:
+            whole, prefix = _reference_answers(lib, ref, h[:k])
+            _assert_same_answer(lib.recognize(h[:k], observed_fraction=1.0), whole)
+            scored.append(_assert_same_answer(lib.recognize(h[:k]), prefix, exact_arrays=False).mean())
+            statuses |= {whole["status"], prefix["status"]}
+    assert {"skill", "unknown", "undecided"} <= statuses, statuses
+    assert (np.mean(scored) < 1.0) == prune
+
+
+def test_library_state_names_the_cluster_with_nan_after_testing_all_arrays_at_once(synthetic_library):
+    _, lib, _, _ = synthetic_library
+    state = lib.state()
+    c = state.components[7]
+    sub = c.subclusters[1]
+    bad = replace(sub, mean=np.where(np.arange(sub.mean.size) == 3, np.nan, sub.mean))
+    with pytest.raises(ValueError, match=f"sub-cluster 1 of component {c.id} has NaN"):
+        replace(state, components=state.components[:7] + (replace(c, subclusters=(c.subclusters[0], bad)),)
+                + state.components[8:])
+
+
+def _prefix_problem(lib, human):
+    """The samples and the phases each component allows (K, 20), as the library prepares them."""
+    from drake_skills.library.prefix import phase_band
+
+    cfg, comps = lib.config, lib._components
+    path = lib._normalized(human, None, False)
+    guess = path.length / np.maximum(comps.path_length, 1e-12)
+    ys = path.resample(recognition._prefix_samples(cfg.n_samples, float(np.median(np.minimum(guess, 1.0)))))
+    return ys, phase_band(guess)
+
+
+@pytest.mark.parametrize("data", ["synthetic", "letters"])
+def test_the_pruning_bound_lies_below_the_exact_fit_statistic_of_every_component_and_phase(
+        data, synthetic_library, letters):
+    """The bound is checked where it matters: against d2 of all pairs, on skills far apart and on close letters."""
+    from drake_skills.library.prefix import PHASE_GRID, score_phases
+    from drake_skills.library.prefix_bound import fit_lower_bounds, prefix_candidates
+
+    if data == "synthetic":
+        bank, lib, _, rng = synthetic_library
+        humans = _probes(bank, rng, n=8)
+    else:
+        demos, ws = letters
+        lib = SkillLibrary(LibraryConfig(workspace=ws))
+        for d in demos[::2]:
+            lib.partial_fit(d)
+        humans = [d.human[: int(len(d.human) * f)] for d in demos[1::6] for f in (0.2, 0.5, 1.0)]
+    cfg, comps = lib.config, lib._components
+    metric = lib._metric()
+    inflate = 1.0 + 1.0 / comps.support
+    sigma_max = float(np.linalg.eigvalsh(metric.cov)[-1])
+    threshold = recognition.chi2_ppf(cfg.novelty_quantile, lib.n_human)
+    pruned = []
+    grid = np.array(PHASE_GRID)
+    noise = lib.observation_noise()
+    for human in humans:
+        ys, allowed = _prefix_problem(lib, human)
+        _, d2, _ = score_phases(ys, grid, comps.means_h, inflate, metric.chol, cfg.basis_human, noise)
+        d2 = d2.T                                                       # (K, 20): every component at every phase
+        for q in (3, 8):
+            bound = fit_lower_bounds(comps.means_h, inflate, grid, ys, sigma_max, cfg.basis_human, noise, n_probes=q)
+            assert (bound <= d2 + 1e-6 * (1 + d2)).all(), np.max(bound - d2)
+        keep = prefix_candidates(comps.means_h, inflate, grid, allowed, ys, sigma_max, cfg.basis_human, noise,
+                                 threshold)
+        assert keep[((d2 <= threshold) & allowed).any(axis=1)].all()
+        pruned.append(1.0 - keep.mean())
+    if data == "synthetic":
+        assert np.mean(pruned) > 0.8, pruned

@@ -1,0 +1,76 @@
+"""One config tree: SimConfig -> LibraryConfig, DecisionRule, read with Drake's yaml_load_typed and validated."""
+import numpy as np
+import pytest
+
+from drake_skills import LibraryConfig
+from drake_skills.data.workspace import Workspace
+from drake_skills.sim.config import SimConfig, load_config, load_library_config
+from drake_skills.systems.decision_rule import DecisionRule
+
+
+def _write(tmp_path, text, name="cfg.yaml"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_sim_config_file_sets_the_library_and_the_decision_rule(tmp_path):
+    p = _write(tmp_path, """
+seed: 3
+library:
+  n_basis_human: 8
+  novelty_test: loglik
+  workspace: {lower: [0.0, -1.0, 0.5], upper: [1.0, 1.0, 1.5]}
+decision:
+  timeout: 4.0
+  decision_time: 1.5
+""")
+    cfg = load_config(p)
+    assert cfg.seed == 3 and cfg.trials == SimConfig().trials
+    assert isinstance(cfg.library, LibraryConfig) and cfg.library.n_basis_human == 8
+    assert cfg.library.novelty_test == "loglik" and cfg.library.ridge == LibraryConfig().ridge
+    assert isinstance(cfg.library.workspace, Workspace)
+    np.testing.assert_array_equal(cfg.library.workspace.upper, [1.0, 1.0, 1.5])
+    assert cfg.decision == DecisionRule(timeout=4.0, decision_time=1.5)
+
+
+def test_a_file_of_library_fields_alone_is_the_library_config(tmp_path):
+    p = _write(tmp_path, "prior_scale: 0.4\nprior_floor: 0.2\n")
+    assert load_library_config(p) == LibraryConfig(prior_scale=0.4, prior_floor=0.2)
+    assert load_config(p).seed == 0
+    assert load_config(None) == SimConfig()
+
+
+@pytest.mark.parametrize("text, message", [
+    ("library:\n  prior_scale: -1.0\n", "prior_scale must be positive"),
+    ("decision:\n  timeout: 0.0\n", "timeout must be positive"),
+    ("trials: 0\n", "trials"),
+    ("library:\n  novelty_test: magic\n", "novelty_test"),
+    ("library:\n  workspace: {lower: [0.0], upper: [0.0]}\n", "empty along axes"),
+    ("seed: 1\nprior_scale: 0.5\n", "under 'library:'"),
+    ("library:\n  n_basis: 3\n", "n_basis"),
+    ("- 1\n- 2\n", "not a mapping"),
+    ("library:\n  workspace: {lower: [], upper: []}\n", "too short"),
+])
+def test_bad_settings_are_errors_naming_the_file_and_the_field(tmp_path, text, message):
+    p = _write(tmp_path, text, "bad.yaml")
+    with pytest.raises(ValueError, match=message) as e:
+        load_config(p)
+    assert "bad.yaml" in str(e.value)
+
+
+def test_missing_file_is_a_clear_error(tmp_path):
+    with pytest.raises(FileNotFoundError, match="nope.yaml"):
+        load_config(tmp_path / "nope.yaml")
+
+
+def test_the_library_file_keeps_a_config_read_from_yaml(tmp_path):
+    from drake_skills import SkillLibrary
+    from synthetic import synthetic_demo
+
+    text = "n_basis_robot: 12\nworkspace: {lower: [-8, -8, -8], upper: [8, 8, 8]}\n"
+    cfg = load_library_config(_write(tmp_path, text))
+    lib = SkillLibrary(cfg)
+    lib.partial_fit(synthetic_demo(0, np.random.default_rng(0)))
+    back = SkillLibrary.load(lib.save(tmp_path / "lib.npz")).config
+    assert back.n_basis_robot == 12 and back.workspace.dict() == cfg.workspace.dict()

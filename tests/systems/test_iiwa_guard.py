@@ -1,0 +1,113 @@
+"""The command guard: latch, joint limits, speed limits, hold on a stale status, resume only near the hold."""
+import math
+
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+
+from drake_skills.sim.models import HOME_Q, IIWA7_JOINT_LIMITS, IIWA7_VELOCITY_LIMITS
+from drake_skills.systems.iiwa_guard import GuardLimits, GuardState, IiwaCommandGuard, guard_step, status_received
+
+LIMITS = GuardLimits(*IIWA7_JOINT_LIMITS, IIWA7_VELOCITY_LIMITS, period=0.005, stale_timeout=0.1)
+
+
+def _run(q_desired_at, times, status_times=None, q_measured=HOME_Q):
+    """guard_step over ``times``; the status is new at every step unless ``status_times`` says otherwise."""
+    state = GuardState()
+    out = []
+    for k, t in enumerate(times):
+        ts = t if status_times is None else status_times(t)
+        state = guard_step(state, t, q_measured, ts, q_desired_at(t), LIMITS)
+        out.append(state)
+    return out
+
+
+def test_the_first_status_latches_the_command_at_the_measured_pose():
+    state = guard_step(GuardState(), 0.0, HOME_Q, 12.5, HOME_Q + 0.3, LIMITS)
+    assert state.status_time == 12.5 and state.arrival_time == 0.0
+    step = LIMITS.v_max * LIMITS.period  # the first command moves at most one speed-limited step
+    np.testing.assert_allclose(state.command, HOME_Q + np.minimum(0.3, step), atol=1e-12)
+
+
+def test_no_status_no_command():
+    assert not status_received(np.zeros(7), 0.0)  # what IiwaStatusReceiver makes of the default message
+    assert status_received(np.zeros(7), 1.0) and status_received(HOME_Q, 0.0)
+    assert guard_step(GuardState(), 0.3, np.zeros(7), 0.0, HOME_Q, LIMITS).command is None
+
+
+def test_commands_move_at_most_the_speed_limit_per_period_and_stay_inside_the_joint_limits():
+    lower, upper = IIWA7_JOINT_LIMITS
+    far = upper + 1.0  # beyond every upper limit
+    times = np.arange(400) * LIMITS.period
+    states = _run(lambda t: far, times)
+    q = np.array([s.command for s in states])
+    assert (np.abs(np.diff(q, axis=0)) <= LIMITS.v_max * LIMITS.period + 1e-12).all()
+    assert (q <= upper - LIMITS.margin + 1e-12).all() and (q >= lower + LIMITS.margin - 1e-12).all()
+    np.testing.assert_allclose(q[-1], upper - LIMITS.margin, atol=1e-12)  # 2 s is enough to get there
+    assert states[-1].limited > 0
+
+
+def test_a_desired_motion_within_the_limits_passes_unchanged():
+    times = np.arange(100) * LIMITS.period
+    wave = lambda t: HOME_Q + 0.2 * math.sin(2 * t)  # 0.4 rad/s, well under every limit
+    states = _run(wave, times)
+    # one period behind at most (the latch step), then exact
+    for t, s in zip(times[1:], states[1:]):
+        np.testing.assert_allclose(s.command, wave(t), atol=1e-12)
+    assert states[-1].limited == 0
+
+
+def test_a_stale_status_freezes_the_command_and_it_resumes_only_near_the_frozen_pose():
+    times = np.arange(200) * LIMITS.period  # 1 s
+    moving = lambda t: HOME_Q + 0.3 * t   # 0.3 rad/s ramp
+    # the status stops changing at 0.25 s (robot silent)...
+    silent = lambda t: min(t, 0.25)
+    states = _run(moving, times, status_times=silent)
+    frozen = [s for t, s in zip(times, states) if t > 0.25 + 0.1 + 1e-9]
+    assert all(s.holding for s in frozen) and states[-1].stale_events == 1
+    held = frozen[0].command
+    for s in frozen:
+        np.testing.assert_array_equal(s.command, held)
+    np.testing.assert_allclose(held, moving(0.35), atol=0.3 * LIMITS.period + 1e-12)  # frozen where it was
+    # ...then it speaks again: still frozen while the desired pose is far, resumes when it comes back
+    s = states[-1]
+    s = guard_step(s, 1.0, HOME_Q, 1.0, moving(1.0), LIMITS)
+    assert s.holding and s.arrival_time == 1.0
+    np.testing.assert_array_equal(s.command, held)
+    s = guard_step(s, 1.005, HOME_Q, 1.005, held + 0.005, LIMITS)
+    assert not s.holding
+    np.testing.assert_allclose(s.command, held + 0.005, atol=1e-12)
+
+
+def test_the_guard_system_refuses_to_start_without_a_status():
+    guard = IiwaCommandGuard(LIMITS)
+    context = guard.CreateDefaultContext()
+    guard.GetInputPort("desired_state").FixValue(context, np.concatenate([HOME_Q, np.zeros(7)]))
+    guard.GetInputPort("position_measured").FixValue(context, np.zeros(7))  # the default message, decoded
+    guard.GetInputPort("velocity_estimated").FixValue(context, np.zeros(7))
+    guard.GetInputPort("status_time").FixValue(context, [0.0])
+    simulator = Simulator(guard, context)
+    with pytest.raises(RuntimeError, match="no lcmt_iiwa_status"):
+        simulator.Initialize()
+    with pytest.raises(RuntimeError, match="would be zeros"):
+        guard.GetOutputPort("measured_state").Eval(context)
+    guard.GetInputPort("position_measured").FixValue(context, HOME_Q)
+    guard.GetInputPort("status_time").FixValue(context, [3.0])
+    simulator.Initialize()
+    np.testing.assert_allclose(guard.GetOutputPort("position").Eval(context), HOME_Q)
+    np.testing.assert_allclose(guard.GetOutputPort("measured_state").Eval(context)[:7], HOME_Q)
+    simulator.AdvanceTo(0.2)  # the status time never changes: stale after 0.1 s
+    status = guard.GetOutputPort("guard_status").Eval(context)
+    assert status.holding and status.stale_events == 1
+    np.testing.assert_allclose(guard.GetOutputPort("position").Eval(context), HOME_Q)
+    roundtrip = GuardState.from_vector(status.to_vector(7), 7)
+    np.testing.assert_array_equal(roundtrip.command, status.command)
+    assert (roundtrip.holding, roundtrip.stale_events, roundtrip.status_time) == (True, 1, 3.0)
+
+
+def test_limits_are_validated():
+    lower, upper = IIWA7_JOINT_LIMITS
+    with pytest.raises(ValueError, match="shape"):
+        GuardLimits(lower[:6], upper, IIWA7_VELOCITY_LIMITS, period=0.005)
+    with pytest.raises(ValueError, match="stale_timeout"):
+        GuardLimits(lower, upper, IIWA7_VELOCITY_LIMITS, period=0.005, stale_timeout=0.0)
