@@ -10,7 +10,7 @@ from drake_skills.promp.basis import GaussianBasis
 from drake_skills.promp.gaussian import condition_gaussian
 from drake_skills.promp.preprocessing import Workspace, resample_by_arc_length
 
-import library_files as lf
+import library_states as ls
 from synthetic import synthetic_demo
 
 SMALL = dict(n_samples=30, n_basis_human=5, n_basis_robot=5)
@@ -41,7 +41,7 @@ def test_config_integer_fields_and_their_lower_bounds():
                 **{name: lo + 0.5})
 
 
-@pytest.mark.parametrize("name", ["basis_width", "sigma_init_human", "sigma_init_robot", "gating_floor",
+@pytest.mark.parametrize("name", ["basis_width", "prior_scale", "prior_strength", "expert_prior",
                                   "observation_noise"])
 def test_config_positive_fields(name):
     _raises(f"LibraryConfig.{name} must be positive, got 0.0", LibraryConfig, **{name: 0.0})
@@ -50,7 +50,7 @@ def test_config_positive_fields(name):
     assert getattr(LibraryConfig(**{name: 1e-3}), name) == 1e-3
 
 
-@pytest.mark.parametrize("name", ["ridge", "consolidation", "delete_min_support", "resample_tolerance"])
+@pytest.mark.parametrize("name", ["ridge", "consolidation", "delete_min_support", "resample_tolerance", "prior_floor"])
 def test_config_non_negative_fields(name):
     assert getattr(LibraryConfig(**{name: 0.0}), name) == 0.0
     _raises(f"LibraryConfig.{name} must be >= 0, got -0.1", LibraryConfig, **{name: -0.1})
@@ -58,11 +58,22 @@ def test_config_non_negative_fields(name):
     _raises(f"LibraryConfig.{name} must be >= 0, got nan", LibraryConfig, **{name: float("nan")})
 
 
-@pytest.mark.parametrize("name", ["novelty_quantile", "merge_quantile"])
+@pytest.mark.parametrize("name", ["novelty_quantile", "merge_quantile", "split_quantile", "decision_risk"])
 def test_config_quantiles_lie_strictly_between_0_and_1(name):
     for bad in (0.0, 1.0, -0.5):
         _raises(f"LibraryConfig.{name} must be in (0, 1), got {bad!r}", LibraryConfig, **{name: bad})
-    assert getattr(LibraryConfig(**{name: 1e-6}), name) == 1e-6
+    small = dict(merge_quantile=1e-6) if name == "split_quantile" else {}
+    assert getattr(LibraryConfig(**{name: 2e-6, **small}), name) == 2e-6
+
+
+def test_config_shrinkage_split_above_merge_and_retired_fields():
+    for bad in (-0.1, 1.0):
+        _raises(f"LibraryConfig.shrinkage must be in [0, 1), got {bad!r}", LibraryConfig, shrinkage=bad)
+    assert LibraryConfig(shrinkage=0.0).shrinkage == 0.0
+    _raises("LibraryConfig.split_quantile (0.99) must be above merge_quantile (0.99), or a merge would be split "
+            "again at once", LibraryConfig, merge_quantile=0.99, split_quantile=0.99)
+    _raises("LibraryConfig fields ['gating_floor'] are gone: the novelty scale is now learned", LibraryConfig.from_dict,
+            {"gating_floor": 1.0, "ridge": 0.1})
 
 
 def test_config_novelty_test_workspace_and_dict_round_trip():
@@ -110,7 +121,8 @@ def test_component_views_ids_weights_and_lookup():
     c1 = lib.component(1)
     assert c1.id == 1 and c1.n_human == 15
     np.testing.assert_array_equal(c1.mean_gating, c1.mean[:15])
-    np.testing.assert_array_equal(c1.cov_gating, c1.cov[:15, :15])
+    np.testing.assert_allclose(c1.cov_gating, lib.shared_covariance() * (1 + 1 / c1.support), rtol=1e-12)
+    np.testing.assert_array_equal(c1.cov, lib.as_mixture("expert")[2][1])
     assert c1.cov.flags.writeable is False and c1.mean.flags.writeable is False
     _raises("'no component with id 9; ids are [0, 1, 2]'", lib.component, 9, exc=KeyError)
     _raises("'no component with id 9; ids are [0, 1, 2]'", lib.predict_robot, np.eye(3), component=9, exc=KeyError)
@@ -126,7 +138,7 @@ def test_as_mixture_gives_the_gating_and_the_expert_mixtures():
     s = np.array([c.support for c in comps])
     np.testing.assert_allclose(w, s / s.sum(), rtol=1e-12)
     assert means.shape == (3, 15) and covs.shape == (3, 15, 15)
-    np.testing.assert_array_equal(covs[2], comps[2].cov[:15, :15])  # no floor added
+    np.testing.assert_allclose(covs[2], lib.shared_covariance() * (1 + 1 / comps[2].support), rtol=1e-12)
     w2, means2, covs2 = lib.as_mixture("expert")
     np.testing.assert_array_equal(w2, w)
     assert means2.shape == (3, 50) and covs2.shape == (3, 50, 50)
@@ -141,8 +153,7 @@ def test_as_mixture_of_a_single_component():
 
 
 def test_as_mixture_of_a_library_whose_components_were_all_deleted(tmp_path):
-    meta = lf.metadata(LibraryConfig(**SMALL), [], dim_human=3, dim_robot=7, next_id=3)
-    lib = SkillLibrary.load(lf.write(tmp_path / "x.npz", meta, np.zeros((0, 50)), np.zeros((0, 50, 50))))
+    lib = ls.library(LibraryConfig(**SMALL), [], dim_human=3, dim_robot=7, next_id=3)
     _raises("the library has no components", lib.as_mixture)
 
 
@@ -173,7 +184,8 @@ def test_fit_resets_then_folds_in_the_demonstrations_in_order():
     for x, y in zip(a.components, b.components):
         np.testing.assert_array_equal(x.mean, y.mean)
     ws = Workspace([-10.0, -10.0, -10.0], [10.0, 10.0, 10.0])
-    c = SkillLibrary(cfg).fit(demos, workspace=ws)
+    c = SkillLibrary(LibraryConfig(**SMALL, resample_tolerance=0.0)).fit(demos, workspace=ws)
+    a = SkillLibrary(LibraryConfig(**SMALL, resample_tolerance=0.0)).fit(demos)
     np.testing.assert_allclose(c.components[0].mean[:15], 0.5 * a.components[0].mean[:15], rtol=1e-9, atol=1e-12)
 
 
@@ -226,7 +238,8 @@ def test_recognize_input_messages():
     _raises("human trajectory does not move: its path length is 0", lib.recognize, np.ones((5, 3)))
     for f in (0.0, 1.5, -0.2):
         _raises(f"observed_fraction must be in (0, 1], got {f!r}", lib.recognize, human, observed_fraction=f)
-    assert lib.recognize(human[:2]).dof == 15  # two samples are enough to be answered
+    assert lib.recognize(human[:2]).status in ("skill", "undecided", "unknown")  # two samples are enough
+    assert lib.recognize(human, observed_fraction=1).dof == 15
     assert lib.recognize(human, observed_fraction=1).component == lib.recognize(human).component
 
 
@@ -267,47 +280,47 @@ def test_first_demonstration_sets_the_dimensions():
 
 
 # ------------------------------------------------------------------------------ learning
-def test_one_skill_library_holds_the_exact_running_moments_without_fast_forgetting():
-    """K = 1, responsibility 1 every time: mean = average weight, cov = (Sigma_init + scatter) / n, support n,
-    age n, duration = mean duration (Eqs. 6-8 with gamma~ = gamma)."""
-    cfg = LibraryConfig(**SMALL, fast_forgetting=False, sigma_init_human=3.0, sigma_init_robot=1.0)
+def test_one_skill_library_holds_the_exact_running_moments():
+    """K = 1, responsibility 1 every time: mean = average weight, scatter = sum of squared deviations, support n,
+    age n, duration and path length their means (Eqs. 6-8, exact); the expert covariance is
+    (kappa Sigma + S) / (kappa + n - 1) and the shared scale pooled the same scatter."""
+    cfg = LibraryConfig(**SMALL, prior_floor=3.0)
     rng = np.random.default_rng(7)
     demos = [synthetic_demo(0, rng, T=30, noise=0.05, scale=s) for s in (1.0, 1.3, 0.8, 1.1, 0.9)]
     lib = SkillLibrary(cfg)
     for d in demos:
         lib.partial_fit(d)
     assert lib.n_components == 1
-    W = np.stack([lf.encode(cfg, d) for d in demos])
+    W = np.stack([ls.encode(cfg, d) for d in demos])
     c = lib.components[0]
-    init = np.diag(np.r_[np.full(15, 9.0), np.full(35, 1.0)])
+    st = lib.state()
     mean = W.mean(0)
+    S = (W - mean).T @ (W - mean)
     np.testing.assert_allclose(c.mean, mean, rtol=0, atol=1e-10)
-    np.testing.assert_allclose(c.cov, (init + (W - mean).T @ (W - mean)) / 5, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(st.components[0].cluster.scatter, S, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(st.scale.pooled, S, rtol=0, atol=1e-10)
+    assert st.scale.dof == pytest.approx(4.0, abs=1e-12) and st.scale.n == 5
+    np.testing.assert_allclose(st.scale.total_mean, mean, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(st.scale.total_m2, np.diag(S), rtol=0, atol=1e-10)
+    np.testing.assert_allclose(c.cov, (lib.shared_covariance("expert") + S) / (1.0 + 4.0), rtol=1e-10, atol=1e-12)
     assert c.support == pytest.approx(5.0, abs=1e-12) and c.age == 5
     assert c.duration == pytest.approx(np.mean([d.duration for d in demos]), rel=1e-12)
+    assert c.path_length == pytest.approx(np.mean([lib.path_length(d.human) for d in demos]), rel=1e-12)
 
 
-def test_fast_forgetting_forgets_sigma_init_faster():
-    rng = np.random.default_rng(8)
-    demos = [synthetic_demo(0, rng, T=30, noise=0.05) for _ in range(4)]
-    traces = {}
-    for ff in (False, True):
-        lib = SkillLibrary(LibraryConfig(**SMALL, fast_forgetting=ff, sigma_init_human=3.0))
-        for d in demos:
-            lib.partial_fit(d)
-        traces[ff] = np.trace(lib.components[0].cov)
-    assert traces[True] < 0.9 * traces[False]
 
 
-def test_new_component_starts_at_the_demonstration_with_sigma_init():
-    cfg = LibraryConfig(**SMALL, sigma_init_human=0.3, sigma_init_robot=0.2)
+
+def test_new_component_starts_at_the_demonstration_with_the_shared_covariance():
+    cfg = LibraryConfig(**SMALL)
     rng = np.random.default_rng(9)
     lib = SkillLibrary(cfg)
     d = synthetic_demo(2, rng, T=30, scale=1.5)
     u = lib.partial_fit(d)
     assert u == type(u)(0, None, created=(0,))
     c = lib.components[0]
-    np.testing.assert_allclose(c.cov, np.diag(np.r_[np.full(15, 0.09), np.full(35, 0.04)]), rtol=1e-15, atol=0)
+    np.testing.assert_array_equal(c.mean, ls.encode(cfg, d))
+    np.testing.assert_allclose(c.cov, lib.shared_covariance("expert"), rtol=1e-12, atol=0)
     assert (c.support, c.age, c.duration) == (1.0, 1, pytest.approx(1.8))
     assert lib.history == ({"event": "created", "id": 0, "demo": 0},)
     u = lib.partial_fit(synthetic_demo(0, rng, T=30))
@@ -315,29 +328,35 @@ def test_new_component_starts_at_the_demonstration_with_sigma_init():
 
 
 @pytest.mark.parametrize("support, deleted", [(1.5, True), (1.5 + 1e-9, False)])
-def test_component_past_its_deletion_age_is_deleted_at_the_minimum_support(tmp_path, support, deleted):
-    """delete_min_age 30, delete_min_support 1.5: a component aged 31 with support <= 1.5 is deleted."""
+def test_component_past_its_deletion_age_is_deleted_at_the_minimum_support(support, deleted):
+    """delete_min_age 30 (K = 2 <= 5: not scaled), delete_min_support 1.5: a component aged 31 with support <= 1.5
+    is deleted, and its scatter and degrees of freedom leave the shared scale."""
     cfg = LibraryConfig(**SMALL)
     rng = np.random.default_rng(10)
     far = synthetic_demo(3, rng, T=30)
-    w = lf.encode(cfg, synthetic_demo(0, rng, T=30))
-    d = w.shape[0]
-    comps = [lf.component(4, w, 0.25 * np.eye(d), support=support, age=30)]
-    lib = SkillLibrary.load(lf.write_library(tmp_path / "old.npz", cfg, comps, dim_human=3, dim_robot=7, n_seen=40))
+    w = ls.encode(cfg, synthetic_demo(0, rng, T=30))
+    F = 0.1 * rng.standard_normal((50, 2))
+    lib = ls.library(cfg, [ls.component(4, w, factor=F, support=support, age=30)], dim_human=3, dim_robot=7,
+                     n_seen=40)
+    before = lib.state().scale
     u = lib.partial_fit(far)  # novel: creates 5, ages 4 to 31
     assert u.created == (5,)
     assert u.deleted == ((4,) if deleted else ())
     assert [c.id for c in lib.components] == ([5] if deleted else [4, 5])
+    after = lib.state().scale
     if deleted:
         assert lib.history[-1] == {"event": "deleted", "id": 4, "demo": 40, "age": 31, "support": 1.5}
+        np.testing.assert_allclose(after.pooled, before.pooled - F @ F.T, rtol=1e-12, atol=1e-6)
+        assert after.dof == pytest.approx(before.dof - 0.5, abs=1e-9)
+    else:
+        np.testing.assert_array_equal(after.pooled, before.pooled)
 
 
-def test_young_component_is_not_deleted(tmp_path):
+def test_young_component_is_not_deleted():
     cfg = LibraryConfig(**SMALL)
     rng = np.random.default_rng(11)
-    w = lf.encode(cfg, synthetic_demo(0, rng, T=30))
-    comps = [lf.component(0, w, 0.25 * np.eye(50), support=1.0, age=29)]
-    lib = SkillLibrary.load(lf.write_library(tmp_path / "young.npz", cfg, comps, dim_human=3, dim_robot=7))
+    w = ls.encode(cfg, synthetic_demo(0, rng, T=30))
+    lib = ls.library(cfg, [ls.component(0, w, support=1.0, age=29)], dim_human=3, dim_robot=7, n_seen=29)
     assert lib.partial_fit(synthetic_demo(3, rng, T=30)).deleted == ()  # age 30 is not past 30
 
 
@@ -351,7 +370,9 @@ def _conditioned_robot_reference(lib, k, y, f):
     HT[:, :15] = np.kron(np.eye(3), Phi)
     d, m = c.mean.shape[0], y.size
     mean_j = np.r_[c.mean, HT @ c.mean]
-    cov_j = np.block([[c.cov, c.cov @ HT.T], [HT @ c.cov, HT @ c.cov @ HT.T + cfg.observation_noise * np.eye(m)]])
+    noise = lib.observation_noise()
+    assert noise >= cfg.observation_noise
+    cov_j = np.block([[c.cov, c.cov @ HT.T], [HT @ c.cov, HT @ c.cov @ HT.T + noise * np.eye(m)]])
     mu, S = condition_gaussian(mean_j, cov_j, np.arange(d, d + m), y.T.reshape(-1))
     return mu[15:], S[15:, 15:]
 
@@ -365,7 +386,8 @@ def test_predict_robot_is_the_conditioned_robot_block_over_the_components_phase(
         step = np.linalg.norm(np.diff(human, axis=0), axis=1)
         human = human[:int(np.searchsorted(np.cumsum(step), f * step.sum())) + 2]
     k = lib.recognize(human, observed_fraction=f).component
-    y = resample_by_arc_length(human - human[0], 30 if f == 1 else 15)
+    y = lib.human_samples(human, observed_fraction=f)
+    assert y.shape == (30 if f == 1 else 15, 3)
     mu_r, S_r = _conditioned_robot_reference(lib, k, y, f)
     mean, cov = lib.predict_robot(human, observed_fraction=f, n_steps=12)
     Phi_r = lib.config.basis_robot.phi(np.linspace(0, 1, 12))
@@ -382,9 +404,11 @@ def test_predict_robot_is_the_conditioned_robot_block_over_the_components_phase(
 def test_a_short_prefix_is_resampled_to_at_least_two_samples():
     lib = _lib(n=4, n_samples=100)
     human = synthetic_demo(0, np.random.default_rng(13), T=60).human
-    rec = lib.recognize(human[:5], observed_fraction=0.004)  # round(0.4) = 0 samples: 2 are used
-    assert rec.dof == 2 * 3
-    assert lib.recognize(human[:20], observed_fraction=0.25).dof == 25 * 3
+    assert lib.human_samples(human[:5], observed_fraction=0.004).shape == (2, 3)  # round(0.4) = 0: 2 are used
+    assert lib.human_samples(human[:20], observed_fraction=0.25).shape == (25, 3)
+    assert lib.human_samples(human).shape == (100, 3)
+    rec = lib.recognize(human[:5], observed_fraction=0.004)
+    assert rec.mahalanobis_sq.shape == (lib.n_components,) and np.all(rec.phases == 0.004)
 
 
 def test_encoding_uses_the_configured_ridge_tolerance_and_start_subtraction():
@@ -411,7 +435,7 @@ def test_encoding_uses_the_configured_ridge_tolerance_and_start_subtraction():
         lib = SkillLibrary(cfg)
         lib.partial_fit(noisy)
         np.testing.assert_allclose(lib.components[0].mean, w, rtol=1e-10, atol=1e-12, err_msg=str(kw))
-        assert lib.recognize(noisy.human).mahalanobis_sq[0] == pytest.approx(0.0, abs=1e-12)
+        assert lib.recognize(noisy.human, observed_fraction=1.0).mahalanobis_sq[0] == pytest.approx(0.0, abs=1e-12)
     default = SkillLibrary(LibraryConfig(**SMALL))
     default.partial_fit(noisy)
     assert not np.allclose(default.components[0].mean, lib.components[0].mean, atol=1e-3)
@@ -426,11 +450,10 @@ def test_messages_of_an_unnamed_demonstration_say_demonstration():
             Demonstration(t=d.t, human=d.human))
 
 
-def test_deleted_support_is_recorded_to_six_decimals(tmp_path):
+def test_deleted_support_is_recorded_to_six_decimals():
     cfg = LibraryConfig(**SMALL)
     rng = np.random.default_rng(16)
-    w = lf.encode(cfg, synthetic_demo(0, rng, T=30))
-    comps = [lf.component(0, w, 0.25 * np.eye(50), support=1.23456789, age=30)]
-    lib = SkillLibrary.load(lf.write_library(tmp_path / "old.npz", cfg, comps, dim_human=3, dim_robot=7))
+    w = ls.encode(cfg, synthetic_demo(0, rng, T=30))
+    lib = ls.library(cfg, [ls.component(0, w, support=1.23456789, age=30)], dim_human=3, dim_robot=7, n_seen=30)
     assert lib.partial_fit(synthetic_demo(3, rng, T=30)).deleted == (0,)
     assert lib.history[-1]["support"] == 1.234568

@@ -79,11 +79,25 @@ def test_log_likelihood_human_uses_the_human_block_the_floor_and_the_noise():
         assert got[2] == 22
 
 
-def test_prefix_recognition_uses_the_observation_likelihood_of_each_component():
-    """SkillLibrary.recognize on a prefix: log-likelihoods are the observation-space Gaussians of every
-    component's human block plus the gating floor, at the phases [0, f]."""
+def _direct_fit_statistic(mean_h, cov_hh, Phi_o, y, noise):
+    """The prefix test's statistic from explicit matrices: (u^T G^+ u - u^T S A^-1 u) / noise, u = H r,
+    G = H H^T, A = noise I + G S, and its degrees of freedom h - noise tr(A^-1)."""
+    D = y.shape[1]
+    HT = np.kron(np.eye(D), Phi_o)
+    r = y.T.reshape(-1) - HT @ mean_h
+    u = HT.T @ r
+    G = HT.T @ HT
+    A = noise * np.eye(G.shape[0]) + G @ cov_hh
+    d2 = (u @ np.linalg.pinv(G, rcond=1e-10, hermitian=True) @ u - u @ cov_hh @ np.linalg.solve(A, u)) / noise
+    return max(d2, 0.0), G.shape[0] - noise * np.trace(np.linalg.inv(A))
+
+
+@pytest.mark.parametrize("f", [0.4, 0.75])
+def test_prefix_recognition_uses_the_observation_likelihood_of_each_component(f):
+    """SkillLibrary.recognize on a prefix of known fraction: log-likelihoods are the observation-space Gaussians
+    of every component's predictive gating covariance Sigma (1 + 1/s_k) at the phases [0, f] with the learned
+    observation noise (log-determinant included); the fit statistic and its dof from explicit matrices."""
     from drake_skills import LibraryConfig, SkillLibrary
-    from drake_skills.promp.preprocessing import resample_by_arc_length
     from synthetic import synthetic_demo
 
     cfg = LibraryConfig(n_samples=40, n_basis_human=6, n_basis_robot=6)
@@ -93,16 +107,22 @@ def test_prefix_recognition_uses_the_observation_likelihood_of_each_component():
         lib.partial_fit(synthetic_demo(i % 3, rng, T=40))
     demo = synthetic_demo(1, rng, T=40)
     step = np.linalg.norm(np.diff(demo.human, axis=0), axis=1)
-    cut = int(np.searchsorted(np.cumsum(step), 0.4 * step.sum())) + 1
+    cut = int(np.searchsorted(np.cumsum(step), f * step.sum())) + 1
     prefix = demo.human[:cut + 1]
-    rec = lib.recognize(prefix, observed_fraction=0.4)
-    y = resample_by_arc_length(prefix - prefix[0], 16)  # round(0.4 * 40) samples over the observed path
-    Phi_o = cfg.basis_human.phi(np.linspace(0.0, 0.4, 16))
+    rec = lib.recognize(prefix, observed_fraction=f)
+    m = int(round(f * 40))
+    y = lib.human_samples(prefix, observed_fraction=f)
+    assert y.shape == (m, 3)
+    Phi_o = cfg.basis_human.phi(np.linspace(0.0, f, m))
     h = lib.n_human
-    assert rec.dof == 16 * 3
+    G = lib.shared_covariance()
+    noise = lib.observation_noise()
     for k, c in enumerate(lib.components):
-        ref, ref_d2, _ = _direct(c.mean[:h], c.cov[:h, :h] + cfg.gating_floor * np.eye(h), Phi_o, y,
-                                 cfg.observation_noise)
+        S = G * (1.0 + 1.0 / c.support)
+        ref, _, _ = _direct(c.mean[:h], S, Phi_o, y, noise)
+        ref_d2, ref_dof = _direct_fit_statistic(c.mean[:h], S, Phi_o, y, noise)
         assert rec.log_likelihoods[k] == pytest.approx(ref, rel=1e-9)
-        assert rec.mahalanobis_sq[k] == pytest.approx(ref_d2, rel=1e-8)
-    assert rec.component == lib.recognize(demo.human).component
+        assert rec.mahalanobis_sq[k] == pytest.approx(ref_d2, rel=1e-6, abs=1e-8)
+        assert rec.dof[k] == pytest.approx(ref_dof, rel=1e-9)
+        assert 0 < rec.dof[k] < h
+    assert rec.status == "skill" and rec.component == lib.recognize(demo.human, observed_fraction=1.0).component
