@@ -126,3 +126,22 @@ def test_prefix_recognition_uses_the_observation_likelihood_of_each_component(f)
         assert rec.dof[k] == pytest.approx(ref_dof, rel=1e-9)
         assert 0 < rec.dof[k] < h
     assert rec.status == "skill" and rec.component == lib.recognize(demo.human, observed_fraction=1.0).component
+
+
+@pytest.mark.parametrize("D, m, noise", [(2, 9, 0.05), (3, 4, 0.5), (1, 20, 1e-3)])
+def test_prefix_statistics_equal_the_observation_space_gaussian_and_the_explicit_fit_statistic(D, m, noise):
+    """The reference the library's batched prefix scoring is checked against (tests/brute_force.py), itself
+    checked here: its log-likelihood (log-determinant included), statistic and dof from explicit matrices."""
+    from drake_skills.promp.interaction import prefix_statistics
+
+    rng = np.random.default_rng(D * 10 + m)
+    basis = GaussianBasis(6, normalized=True)
+    mean_h, cov_hh = _model(rng, D)
+    Phi_o = basis.phi(np.linspace(0.0, 0.6, m))
+    y = (np.kron(np.eye(D), Phi_o) @ mean_h).reshape(D, m).T + 0.3 * rng.standard_normal((m, D))
+    loglik, d2, dof = prefix_statistics(mean_h, cov_hh, Phi_o, y, noise)
+    ref, _, _ = _direct(mean_h, cov_hh, Phi_o, y, noise)
+    ref_d2, ref_dof = _direct_fit_statistic(mean_h, cov_hh, Phi_o, y, noise)
+    assert loglik == pytest.approx(ref, rel=1e-9)
+    assert d2 == pytest.approx(ref_d2, rel=1e-6, abs=1e-9)
+    assert dof == pytest.approx(ref_dof, rel=1e-9) and 0 < dof <= D * 6
