@@ -71,11 +71,11 @@ def test_demonstration_is_novel_just_beyond_the_chi2_quantile(factor, created):
 @pytest.mark.parametrize("offset, unknown", [(0.05, True), (-0.05, False)])
 def test_loglik_novelty_compares_log_p_with_log_T_nov(offset, unknown):
     """novelty_test="loglik": unknown when log p(w_h | k) < log T_nov for every k, log p under Sigma (1 + 1/s)."""
-    lib0, demo, w, G = _at_distance([20.0], supports=[4.0])
+    lib0, demo, w, G = _at_distance([20.0], supports=[4.0], var=0.5)  # log det Sigma = -10: it counts
     c = lib0.components[0]
     log_p = multivariate_normal(c.mean[:H], G * 1.25).logpdf(w[:H])
     lib, demo, _, _ = _at_distance([20.0], supports=[4.0], novelty_test="loglik", log_T_nov=log_p + offset,
-                                   log_T_merge=1e3)
+                                   log_T_merge=1e3, var=0.5)
     rec = lib.recognize(demo.human, observed_fraction=1.0)
     assert rec.log_likelihoods[0] == pytest.approx(log_p, rel=1e-12)
     assert (rec.status == "unknown") is unknown

@@ -28,7 +28,7 @@ THR_MERGE = chi2.ppf(0.999, H)  # 37.7
 THR_NOV = chi2.ppf(0.5, H)  # 14.3
 
 
-def _setup(specs, seed=0, **cfg_kw):
+def _setup(specs, seed=0, var=1.0, **cfg_kw):
     """Components ``(id, z, support, age)`` at whitened offsets ``z`` (H,) from a demonstration's weights.
 
     Returns (lib, demo, w, g) with the gating covariance g I.
@@ -36,12 +36,12 @@ def _setup(specs, seed=0, **cfg_kw):
     cfg = LibraryConfig(**{**BASE, **cfg_kw})
     demo = synthetic_demo(0, np.random.default_rng(seed), T=30, robot=False)
     w = ls.encode(cfg, demo)
-    g = ls.library(cfg, [], dim_human=3, dim_robot=0).shared_covariance()[0, 0]
+    g = ls.library(cfg, [], dim_human=3, dim_robot=0, var=var).shared_covariance()[0, 0]
     rng = np.random.default_rng(seed + 1)
     comps = [ls.component(cid, w + np.sqrt(g) * z, support=s, age=age, duration=2.0 + cid, path_length=3.0 + cid,
                           factor=0.1 * rng.standard_normal((H, 2)))
              for cid, z, s, age in specs]
-    lib = ls.library(cfg, comps, dim_human=3, dim_robot=0, n_seen=10)
+    lib = ls.library(cfg, comps, dim_human=3, dim_robot=0, n_seen=10, var=var)
     return lib, demo, w, g
 
 
@@ -146,16 +146,16 @@ def test_consolidation_divides_the_merge_threshold_by_the_larger_support_to_the_
 @pytest.mark.parametrize("offset, merges", [(-0.05, True), (0.05, False)])
 def test_loglik_merges_when_the_mean_difference_is_likelier_than_T_merge_s_beta(beta, offset, merges):
     """novelty_test="loglik": merge when log N(mu_i - mu_j | 0, Sigma (1/s_i + 1/s_j)) > log T_merge + beta log s
-    (the log-determinant of Sigma counts), checked against scipy."""
+    (the log-determinant of Sigma counts: Sigma = 0.3 I, log det = -18), checked against scipy."""
     s_a = 3.0
     z = _offset(0.5 * THR_MERGE, s_a)
-    lib0, demo, w, g = _setup([(0, z, s_a, 3)])
+    lib0, demo, w, g = _setup([(0, z, s_a, 3)], var=0.3)
     mu_a = lib0.components[0].mean
     G = lib0.shared_covariance()
     log_p = multivariate_normal(np.zeros(H), G * (1.0 / s_a + 1.0)).logpdf(mu_a - w)
     log_T_merge = log_p - beta * np.log(s_a) + offset
     lib, demo, _, _ = _setup([(0, z, s_a, 3)], novelty_test="loglik", log_T_nov=1e3, log_T_merge=log_T_merge,
-                             consolidation=beta)
+                             consolidation=beta, var=0.3)
     u = lib.partial_fit(demo)
     assert u.created == (1,) and bool(u.merged) is merges
 
