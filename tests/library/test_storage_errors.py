@@ -291,3 +291,98 @@ def test_unreadable_files_give_clear_errors(tmp_path, case, message):
     exc = FileNotFoundError if case == "missing" else ValueError
     with pytest.raises(exc, match="^" + re.escape(f"library file '{p}'{message}")):
         SkillLibrary.load(p)
+
+
+# ------------------------------------------------------------------------------- schema 1-2 (dense) files
+def _dense(path, comps, *, n_seen=9, version=2, d_h=3, d_r=0, config=None):
+    """A schema-2 file of the fixed-scale library: components (id, age, support, duration, mean, cov)."""
+    cfg = (config or LibraryConfig(n_basis_human=5, n_basis_robot=5)).dict()
+    cfg.update(sigma_init_human=0.5, sigma_init_robot=0.1, gating_floor=1.0, fast_forgetting=True)
+    meta = {"format": storage.FORMAT, "schema_version": version, "config": cfg, "dim_human": d_h, "dim_robot": d_r,
+            "next_id": max(c[0] for c in comps) + 1, "n_seen": n_seen, "history": [],
+            "components": [{"id": c[0], "age": c[1], "support": c[2], "duration": c[3]} for c in comps]}
+    np.savez(path, metadata=np.array(json.dumps(meta)), means=np.stack([c[4] for c in comps]),
+             covs=np.stack([c[5] for c in comps]))
+    return path
+
+
+def _spd(rng, d, scale):
+    A = rng.standard_normal((d, d))
+    return scale * (A @ A.T / d + 0.1 * np.eye(d))
+
+
+def test_a_dense_file_becomes_scatters_and_a_shared_scale_estimated_from_its_components(tmp_path, caplog):
+    """Each covariance C_k becomes the scatter s_k C_k; the scale's totals are the support-weighted moments of the
+    components, its pooled scatter their sum over sum(s_k - 1) degrees of freedom; ages at least 1; no path lengths
+    (a warning says so)."""
+    rng = np.random.default_rng(3)
+    d = 15
+    comps = [(2, 0, 3.0, 1.5, rng.standard_normal(d), _spd(rng, d, 0.2)),
+             (5, 4, 1.5, 2.5, rng.standard_normal(d), _spd(rng, d, 0.05))]
+    with caplog.at_level("WARNING", logger="drake_skills.library.storage"):
+        st = SkillLibrary.load(_dense(tmp_path / "v2.npz", comps)).state()
+    assert "has schema version < 3 (fixed Sigma_init scale)" in caplog.text and "v2.npz" in caplog.text
+    assert [(c.id, c.age, c.support, c.duration, c.path_length) for c in st.components] == \
+        [(2, 1, 3.0, 1.5, 0.0), (5, 4, 1.5, 2.5, 0.0)]
+    s = np.array([3.0, 1.5])
+    means = np.stack([c[4] for c in comps])
+    covs = np.stack([c[5] for c in comps])
+    for c, (_, _, sk, _, m, C) in zip(st.components, comps):
+        np.testing.assert_array_equal(c.mean, m)
+        np.testing.assert_allclose(c.cluster.scatter, sk * C, rtol=1e-10, atol=1e-12)
+        assert c.subclusters[0] is c.cluster and c.subclusters[1] is None
+    mean = s @ means / s.sum()
+    sc = st.scale
+    assert sc.n == 9 and sc.dof == pytest.approx(np.sum(s - 1.0), rel=1e-12)
+    np.testing.assert_allclose(sc.total_mean, mean, rtol=1e-12)
+    np.testing.assert_allclose(sc.total_m2, s @ (np.stack([np.diag(C) for C in covs]) + (means - mean) ** 2),
+                               rtol=1e-12)
+    np.testing.assert_allclose(sc.pooled, 3.0 * covs[0] + 1.5 * covs[1], rtol=1e-10, atol=1e-12)
+    assert st.config.n_basis_human == 5 and st.config.ridge == LibraryConfig().ridge
+
+
+def test_a_dense_file_without_components_gets_an_empty_scale_and_a_schema_1_file_no_tolerance(tmp_path):
+    rng = np.random.default_rng(4)
+    p = _dense(tmp_path / "v1.npz", [(0, 1, 1.0, 1.0, rng.standard_normal(15), np.eye(15))], version=1)
+    meta, arrays = _parts(p)
+    del meta["config"]["resample_tolerance"]
+    meta["components"], meta["n_seen"] = [], 0
+    arrays["means"], arrays["covs"] = np.zeros((0, 15)), np.zeros((0, 15, 15))
+    np.savez(p, metadata=np.array(json.dumps(meta)), **arrays)
+    st = SkillLibrary.load(p).state()
+    assert st.components == () and st.config.resample_tolerance == 0.0 and st.dim_human == 3
+    assert st.scale.n == 0 and not st.scale.pooled.any() and st.scale.dof == 0.0
+
+
+@pytest.mark.parametrize("case, message", [
+    ("asymmetric", ": covariance of component 7 is not symmetric"),
+    ("indefinite", ": covariance of component 7 is not positive definite"),
+    ("no_duration", ": 'duration'"),
+])
+def test_a_bad_dense_covariance_is_an_error_naming_the_component(tmp_path, case, message):
+    rng = np.random.default_rng(5)
+    C = _spd(rng, 15, 0.1)
+    if case == "asymmetric":
+        C[0, 1] += 1e-3
+    elif case == "indefinite":
+        w, V = np.linalg.eigh(C)
+        w[0] = -1e-6 * w.max()
+        C = (V * w) @ V.T
+        C = 0.5 * (C + C.T)
+    p = _dense(tmp_path / f"{case}.npz", [(7, 2, 2.0, 1.0, rng.standard_normal(15), C)])
+    if case == "no_duration":
+        meta, arrays = _parts(p)
+        del meta["components"][0]["duration"]
+        np.savez(p, metadata=np.array(json.dumps(meta)), **arrays)
+    with pytest.raises(ValueError, match="^" + re.escape(f"library file '{p}'{message}")):
+        SkillLibrary.load(p)
+
+
+def test_a_compressed_library_file_loads(lib, good, tmp_path):
+    """Entries may be compressed (within MAX_EXPANSION of their bytes): np.savez_compressed of the same parts."""
+    meta, arrays = _parts(good)
+    p = tmp_path / "compressed.npz"
+    np.savez_compressed(p, metadata=np.array(json.dumps(meta)), **arrays)
+    assert p.stat().st_size < good.stat().st_size
+    back = SkillLibrary.load(p).state()
+    np.testing.assert_array_equal(back.scale.pooled, lib.state().scale.pooled)
