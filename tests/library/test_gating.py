@@ -5,6 +5,8 @@ demonstration under the predictive covariance ``Sigma (1 + 1/s_k)`` of the share
 scale, so the tests know d^2 and log p(w_h | k) exactly and can put the motion just
 inside or just outside the novelty test (chi-square quantile or log T_nov).
 """
+import json
+
 import numpy as np
 import pytest
 from scipy.special import softmax
@@ -48,6 +50,8 @@ def test_motion_is_unknown_just_beyond_the_chi2_quantile(factor, unknown):
     assert rec.mahalanobis_sq[0] == pytest.approx(factor * THR, rel=1e-9)
     assert rec.status == ("unknown" if unknown else "skill") and rec.component == (None if unknown else 0)
     assert rec.dof == H
+    assert rec.posterior.shape == (1,) and rec.posterior.dtype == float
+    np.testing.assert_array_equal(rec.posterior, [0.0 if unknown else 1.0])
 
 
 @pytest.mark.parametrize("quantile", [0.9, 0.99999])
@@ -124,6 +128,13 @@ def test_responsibilities_of_a_demonstration_update_every_component_with_its_sha
         assert a.age == b.age + 1
         np.testing.assert_allclose(a.mean, b.mean + l / (b.support + l) * (w - b.mean), rtol=0, atol=1e-6)
     np.testing.assert_array_equal(lib.components[2].mean, before[2].mean)  # not explained: unchanged
+    # each updated component's demonstration went to a sub-cluster with the same share
+    for c in lib.state().components[:2]:
+        assert c.subclusters[1].support == pytest.approx(u.responsibilities[c.id], rel=1e-12)
+    # ids are ints (they are written to JSON)
+    assert all(type(k) is int for k in u.responsibilities) and type(u.recognized) is int
+    u2 = lib.partial_fit(demo)
+    assert all(type(k) is int for k in u2.responsibilities) and '"0":' in json.dumps(dict(u2.responsibilities))
 
 
 def test_update_reports_the_most_responsible_component():

@@ -221,3 +221,32 @@ def test_the_best_pair_merges_first_however_deep_inside_the_threshold(novelty_te
                               (1, _offset(0.45 * THR_MERGE, 2.0, seed=2), 2.0, 9)], **kw)
     u = lib.partial_fit(demo)
     assert u.created == (2,) and u.merged[0] == (1, 2)
+
+
+def test_the_best_pair_is_compared_across_the_changed_components():
+    """The demonstration updates A (id 0) and C (id 2), supports 30 (too sure of themselves to merge with each
+    other). A's candidate B lies at 0.77 of the threshold, C's candidate D at 0.92: A's pair, found first, is
+    the better one and merges first; then C absorbs D."""
+    e1, e3 = np.eye(H)[0], np.eye(H)[2]
+    lib, demo, _, _ = _setup([(0, np.zeros(H), 30.0, 9), (1, -np.sqrt(30.0) * e1, 1.0, 9),
+                              (2, 3.0 * e1, 30.0, 9), (3, 3.0 * e1 + 6.0 * e3, 1.0, 9)])
+    u = lib.partial_fit(demo)
+    assert u.updated == (0, 2) and u.created == ()
+    assert u.merged == ((0, 1), (2, 3))
+
+
+@pytest.mark.parametrize("offset, merges", [(-0.05, True), (0.05, False)])
+def test_loglik_merge_of_an_updated_component_uses_both_supports(offset, merges):
+    """A (support 3, on the demonstration) is updated to support 4; B (support 1) is novel for the demonstration.
+    The pair merges when log N(mu_B - mu_A | 0, Sigma (1/4 + 1/1)) > log T_merge."""
+    z_b = np.sqrt(40.0) * ls.unit(np.random.default_rng(5), H)
+    lib0, demo, w, g = _setup([(0, np.zeros(H), 3.0, 9), (1, z_b, 1.0, 9)], var=0.3)
+    delta = lib0.components[1].mean - w
+    log_p = multivariate_normal(np.zeros(H), lib0.shared_covariance() * 1.25).logpdf(delta)
+    rec = lib0.recognize(demo.human, observed_fraction=1.0)
+    log_T_nov = 0.5 * (rec.log_likelihoods[0] + rec.log_likelihoods[1])  # A explains it, B does not
+    lib, demo, _, _ = _setup([(0, np.zeros(H), 3.0, 9), (1, z_b, 1.0, 9)], var=0.3, novelty_test="loglik",
+                             log_T_nov=log_T_nov, log_T_merge=log_p + offset)
+    u = lib.partial_fit(demo)
+    assert u.updated == (0,) and u.responsibilities[1] == 0.0
+    assert bool(u.merged) is merges

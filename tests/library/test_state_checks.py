@@ -161,3 +161,15 @@ def test_the_covariances_default_to_no_prior_floor():
     np.testing.assert_array_equal(shared_covariance(sc, 3, **kw), shared_covariance(sc, 3, prior_floor=0.0, **kw))
     np.testing.assert_array_equal(gating_covariance(sc, 3, **kw), gating_covariance(sc, 3, prior_floor=0.0, **kw))
     assert not np.array_equal(shared_covariance(sc, 3, prior_floor=5.0, **kw), shared_covariance(sc, 3, **kw))
+
+
+def test_fold_in_counts_no_fit_residual_by_default():
+    from drake_skills.library.algorithm import fold_in
+    from drake_skills.library.novelty import novelty_rule
+
+    cfg = LibraryConfig()
+    w = np.arange(6.0)
+    kw = dict(n_human=4, config=cfg, rule=novelty_rule(cfg), next_id=0, demo_index=0)
+    step = fold_in(Components.of([], 4), SharedScale.empty(6), w, 1.0, 2.0, **kw)
+    assert step.scale.fit_m2 == 0.0 and step.created == (0,)
+    assert fold_in(Components.of([], 4), SharedScale.empty(6), w, 1.0, 2.0, fit_residual=0.3, **kw).scale.fit_m2 == 0.3
