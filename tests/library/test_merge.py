@@ -121,6 +121,11 @@ def test_the_component_with_the_larger_support_is_kept():
 def test_on_equal_supports_the_lower_id_is_kept():
     lib, demo, _, _ = _setup([(0, _offset(0.5 * THR_MERGE, 1.0), 1.0, 3)])
     assert lib.partial_fit(demo).merged == ((0, 1),)
+    # the changed component has the lower id: A (support 1, updated to 2) and B (support 2, novel for the demo)
+    lib, demo, _, _ = _setup([(0, np.zeros(H), 1.0, 3), (1, np.sqrt(30.0) * ls.unit(np.random.default_rng(9), H),
+                                                          2.0, 3)])
+    u = lib.partial_fit(demo)
+    assert u.updated == (0,) and u.merged == ((0, 1),)
 
 
 # ------------------------------------------------------------------ when a merge happens

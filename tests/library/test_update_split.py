@@ -71,16 +71,17 @@ def test_a_demonstration_joins_the_nearer_sub_cluster(nearer):
     assert lib.components[0].support == pytest.approx(4.0 + lam, rel=1e-12)
 
 
+@pytest.mark.parametrize("s_b", [3.0, 1.0])
 @pytest.mark.parametrize("factor, splits", [(0.97, False), (1.03, True)])
-def test_a_component_splits_when_its_halves_are_beyond_the_split_quantile(factor, splits):
-    """Halves of supports 2 and 3 at two-sample distance factor * chi2_0.9999(15); a far, novel demonstration
+def test_a_component_splits_when_its_halves_are_beyond_the_split_quantile(factor, splits, s_b):
+    """Halves of supports 2 and s_b (1: a merged demonstration) at two-sample distance factor * chi2_0.9999(15); a far, novel demonstration
     triggers the check (all components are checked). A split gives back the halves' exact moments, keeps the
     id for the first half, gives the second the next id, and takes the between term out of the scale."""
     cfg, demo, w, g = _demo_and_scale(var=0.5)
     rng = np.random.default_rng(4)
     far = w + 40.0 * np.sqrt(g) * ls.unit(rng, H)
-    dz = np.sqrt(factor * THR_SPLIT * (1 / 2.0 + 1 / 3.0) * g) * ls.unit(rng, H)
-    comp, a, b = _split_component(3, far + dz, far, 2.0, 3.0, 6, rng)
+    dz = np.sqrt(factor * THR_SPLIT * (1 / 2.0 + 1 / s_b) * g) * ls.unit(rng, H)
+    comp, a, b = _split_component(3, far + dz, far, 2.0, s_b, 6, rng)
     lib = ls.library(cfg, [comp], dim_human=3, dim_robot=0, n_seen=8, next_id=5, var=0.5)
     before = lib.state().scale
     u = lib.partial_fit(demo)
@@ -99,14 +100,18 @@ def test_a_component_splits_when_its_halves_are_beyond_the_split_quantile(factor
         np.testing.assert_array_equal(c.cluster.scatter, half.scatter)
         assert (c.duration, c.path_length) == (half.duration, half.path_length)
         assert c.subclusters[0] is c.cluster and c.subclusters[1] is None
-    gap = np.sqrt(2.0 * 3.0 / 5.0) * (a.mean - b.mean)
+    gap = np.sqrt(2.0 * s_b / (2.0 + s_b)) * (a.mean - b.mean)
     np.testing.assert_allclose(st.scale.pooled, before.pooled - np.outer(gap, gap), rtol=1e-12, atol=1e-6)
     assert st.scale.dof == pytest.approx(before.dof - 1.0, abs=1e-6)
     assert lib.history[-1] == {"event": "split", "id": 3, "new": 6, "demo": 8}
 
 
-def test_a_component_without_a_second_half_never_splits():
+def test_a_component_without_a_second_half_never_splits_and_no_warning_is_raised():
+    import warnings
+
     cfg, demo, w, g = _demo_and_scale()
     far = w + 40.0 * np.sqrt(g) * ls.unit(np.random.default_rng(5), H)
     lib = ls.library(cfg, [ls.component(0, far, support=3.0, age=4)], dim_human=3, dim_robot=0, n_seen=4)
-    assert lib.partial_fit(demo).split == ()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no division by an empty half's support
+        assert lib.partial_fit(demo).split == ()
