@@ -457,3 +457,18 @@ def test_deleted_support_is_recorded_to_six_decimals():
     lib = ls.library(cfg, [ls.component(0, w, support=1.23456789, age=30)], dim_human=3, dim_robot=7, n_seen=30)
     assert lib.partial_fit(synthetic_demo(3, rng, T=30)).deleted == (0,)
     assert lib.history[-1]["support"] == 1.234568
+
+@pytest.mark.parametrize("age, deleted", [(65, False), (66, True)])
+def test_the_deletion_age_is_delete_min_age_times_k_over_5(age, deleted):
+    """K = 11 components after the step: the age limit is 30 * 11 / 5 = 66. A component of support 1 aged 66
+    after the step is kept, aged 67 deleted; ten others (support 5, far apart) stay."""
+    cfg = LibraryConfig(**SMALL)
+    rng = np.random.default_rng(21)
+    demo = synthetic_demo(0, rng, T=30)
+    w = ls.encode(cfg, demo)
+    comps = [ls.component(k, w + 60.0 * np.eye(50)[k], support=5.0, age=10) for k in range(9)]
+    comps.append(ls.component(9, w - 60.0 * np.eye(50)[0], support=1.0, age=age))
+    lib = ls.library(cfg, comps, dim_human=3, dim_robot=7, n_seen=100)
+    u = lib.partial_fit(demo)
+    assert u.created == (10,) and u.merged == () and lib.n_components + len(u.deleted) == 11
+    assert u.deleted == ((9,) if deleted else ())

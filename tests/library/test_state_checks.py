@@ -173,3 +173,26 @@ def test_fold_in_counts_no_fit_residual_by_default():
     step = fold_in(Components.of([], 4), SharedScale.empty(6), w, 1.0, 2.0, **kw)
     assert step.scale.fit_m2 == 0.0 and step.created == (0,)
     assert fold_in(Components.of([], 4), SharedScale.empty(6), w, 1.0, 2.0, fit_residual=0.3, **kw).scale.fit_m2 == 0.3
+
+
+def test_gating_scores_of_no_components_are_empty():
+    from drake_skills.library.algorithm import Metric, gating_scores
+
+    logp, d2 = gating_scores(np.ones(3), Components.of([], 3), Metric.of(np.eye(3)))
+    assert logp.shape == d2.shape == (0,)
+
+
+def test_the_covariance_of_a_scale_without_spread_is_its_floor():
+    """No pooled scatter, no prior (prior_floor 0, and one demonstration has no spread): the covariance is the
+    relative floor 1e-9 (mean square weight) on the diagonal, positive definite; with nothing counted, 1e-300."""
+    kw = dict(prior_scale=0.3, prior_strength=2.0, shrinkage=0.3, prior_floor=0.0)
+    w = np.array([1.0, -2.0, 3.0, 0.5])
+    one = SharedScale.empty(4).count(w)
+    G = gating_covariance(one, 3, **kw)
+    np.testing.assert_allclose(G, (1e-9 * np.mean(w[:3] ** 2) + 1e-300) * np.eye(3), rtol=1e-12, atol=0)
+    np.linalg.cholesky(G)
+    S = shared_covariance(one, 3, **kw)
+    np.testing.assert_allclose(np.diag(S), [1e-9 * np.mean(w[:3] ** 2)] * 3 + [1e-9 * 0.25], rtol=1e-12)
+    G0 = gating_covariance(SharedScale.empty(3), 3, **kw)
+    np.testing.assert_array_equal(G0, 1e-300 * np.eye(3))
+    np.linalg.cholesky(G0)
