@@ -196,3 +196,43 @@ def test_the_covariance_of_a_scale_without_spread_is_its_floor():
     G0 = gating_covariance(SharedScale.empty(3), 3, **kw)
     np.testing.assert_array_equal(G0, 1e-300 * np.eye(3))
     np.linalg.cholesky(G0)
+
+
+def test_the_state_checks_at_their_boundaries():
+    good = _cl()
+    _raises("component 0 has age 2; the library has seen 1 demonstrations",
+            lambda: _state(n_seen=1, components=(ComponentState(0, 2, good, (good, None)),)))
+    # one human dimension (a pen tip) and no robot are valid
+    one = LibraryState(CFG, 1, 0, 0, 0, scale=ls.iso_scale(2))
+    assert (one.n_human, one.n_weights) == (2, 2)
+    _raises("shared scale has shapes (5,), (6, 6); the dimensions say 6 weights",
+            lambda: _state(scale=SharedScale(0, np.zeros(D - 1), np.zeros(D), np.zeros((D, D)), 0.0)))
+    _raises("shared scale has shapes (6,), (6, 6); the dimensions say 6 weights",
+            lambda: _state(scale=SharedScale(0, np.zeros(D), np.zeros(D + 1), np.zeros((D, D)), 0.0)))
+    _raises("shared scale has NaN or inf entries or a negative count",
+            lambda: _state(scale=SharedScale(0, np.zeros(D), np.zeros(D), np.zeros((D, D)), 0.0, np.inf)))
+    # negative variances: below -1e-9 (1 + the largest magnitude) is an error, rounding above it is not
+    big = np.r_[1e6, -1e-4, np.zeros(D - 2)]
+    assert _state(scale=SharedScale(0, np.zeros(D), big, np.zeros((D, D)), 0.0)).n_seen == 3
+    _raises("shared scale has negative variances or degrees of freedom",
+            lambda: _state(scale=SharedScale(0, np.zeros(D), np.r_[-1.5e-9, np.zeros(D - 1)], np.zeros((D, D)), 0.0)))
+    # the sub-clusters' supports sum to the support within 1e-6 relative (at least 1e-6)
+    big_cl = _cl(support=100.0)
+    _state(big_cl, (_cl(support=100.0 + 5e-5), None))
+    _raises("component 0 has support 1.0 but its sub-clusters 1.0000015",
+            lambda: _state(_cl(support=1.0), (_cl(support=1.0000015), None)))
+
+
+def test_a_human_only_library_learns_without_warnings():
+    import warnings
+
+    from synthetic import synthetic_demo
+
+    lib = __import__("drake_skills").SkillLibrary(LibraryConfig(n_samples=30, n_basis_human=5))
+    rng = np.random.default_rng(3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # e.g. the mean of an empty robot block
+        for i in range(4):
+            lib.partial_fit(synthetic_demo(i % 2, rng, T=30, robot=False))
+        lib.recognize(synthetic_demo(0, rng, T=30, robot=False).human)
+    assert lib.n_components == 2
