@@ -388,3 +388,141 @@ def test_a_compressed_library_file_loads(lib, good, tmp_path):
     assert p.stat().st_size < good.stat().st_size
     back = SkillLibrary.load(p).state()
     np.testing.assert_array_equal(back.scale.pooled, lib.state().scale.pooled)
+
+
+def _dense_cov(rng, fix):
+    C = _spd(rng, 15, 0.1)
+    return fix(C) or C
+
+
+def _with_min_eigenvalue(C, value):
+    w, V = np.linalg.eigh(C)
+    w[0] = value
+    out = (V * w) @ V.T
+    return 0.5 * (out + out.T)
+
+
+@pytest.mark.parametrize("case, message", [
+    ("asymmetric_1e-7", ": covariance of component 7 is not symmetric"),
+    ("asymmetric_small_entry", ": covariance of component 7 is not symmetric"),
+    ("indefinite_small", ": covariance of component 7 is not positive definite"),
+    ("no_id", ": covariance of component 0 is not symmetric"),
+    ("no_id_indefinite", ": covariance of component 0 is not positive definite"),
+    ("id_text", ": component 0 id must be an integer >= 0, got 'x'"),
+    ("age_negative", ": age must be an integer >= 0, got -1"),
+])
+def test_dense_covariances_are_checked_at_their_tolerances_naming_the_component(tmp_path, case, message):
+    """Symmetric to rtol 1e-9 and atol 1e-12; eigenvalues above -1e-9 times the largest (at least 1)."""
+    rng = np.random.default_rng(6)
+    C = _spd(rng, 15, 0.1)
+    cid, age = 7, 2
+    if case == "asymmetric_1e-7":
+        C[0, 1] *= 1 + 1e-7
+    elif case == "asymmetric_small_entry":
+        C[0, 5] = C[5, 0] = 1e-3
+        C[0, 5] += 1e-10
+    elif case in ("indefinite_small", "no_id_indefinite"):
+        C = _with_min_eigenvalue(C, -1.5e-9)  # largest eigenvalue < 1: the tolerance is -1e-9
+    elif case == "no_id":
+        C[0, 1] += 1e-3
+    elif case == "id_text":
+        cid = "x"
+    elif case == "age_negative":
+        age = -1
+    p = _dense(tmp_path / f"{case}.npz", [(cid if cid != "x" else 7, age, 2.0, 1.0, rng.standard_normal(15), C)])
+    if case.startswith("no_id") or case == "id_text":
+        meta, arrays = _parts(p)
+        if case == "id_text":
+            meta["components"][0]["id"] = "x"
+        else:
+            del meta["components"][0]["id"]
+        np.savez(p, metadata=np.array(json.dumps(meta)), **arrays)
+    with pytest.raises(ValueError, match="^" + re.escape(f"library file '{p}'{message}") + "$"):
+        SkillLibrary.load(p)
+
+
+def test_dense_covariances_within_rounding_are_accepted(tmp_path):
+    """A smallest eigenvalue of -1e-10 of the largest (~100), asymmetry of 1e-15 relative: loaded, the scatter
+    clipped at 0 in that direction (finite)."""
+    rng = np.random.default_rng(7)
+    C = _with_min_eigenvalue(_spd(rng, 15, 100.0), 0.0)
+    C = _with_min_eigenvalue(C, -1e-10 * np.linalg.eigvalsh(C).max())
+    C[0, 1] *= 1 + 1e-15
+    st = SkillLibrary.load(_dense(tmp_path / "ok.npz", [(0, 1, 2.0, 1.0, rng.standard_normal(15), C)])).state()
+    assert np.isfinite(st.components[0].cluster.factor).all()
+    np.testing.assert_allclose(st.components[0].cluster.scatter, 2.0 * C, rtol=1e-9, atol=1e-8)
+
+
+def test_save_appends_npz_and_syncs_before_renaming(lib, tmp_path, monkeypatch):
+    import os
+
+    assert lib.save(tmp_path / "lib") == tmp_path / "lib.npz" and (tmp_path / "lib.npz").is_file()
+    assert lib.save(tmp_path / "other.npz") == tmp_path / "other.npz"
+    calls = []
+    real_fsync, real_replace = os.fsync, os.replace
+    monkeypatch.setattr(os, "fsync", lambda fd: (calls.append("fsync"), real_fsync(fd))[1])
+    monkeypatch.setattr(os, "replace", lambda a, b: (calls.append("replace"), real_replace(a, b))[1])
+    lib.save(tmp_path / "lib.npz")
+    assert calls[:2] == ["fsync", "replace"]
+
+
+def test_a_fitted_library_whose_components_were_all_deleted_round_trips(tmp_path):
+    import library_states as ls
+
+    cfg = LibraryConfig(n_basis_human=4, n_basis_robot=3)
+    lib = ls.library(cfg, [], dim_human=2, dim_robot=1, next_id=5, n_seen=9)
+    back = SkillLibrary.load(lib.save(tmp_path / "gone")).state()
+    assert (back.dim_human, back.dim_robot, back.next_id, back.n_seen, back.components) == (2, 1, 5, 9, ())
+    np.testing.assert_array_equal(back.scale.pooled, lib.state().scale.pooled)
+    with np.load(tmp_path / "gone.npz") as z:
+        assert z["means"].shape == (0, 11) and z["factors"].shape == (11, 0) and z["sub_factors"].shape == (11, 0)
+
+
+def _entries_of(path, version=None, compress=False, overrides=None):
+    """The .npy entries of a library file, rewritten with another header version or compression."""
+    import io
+    import zipfile
+
+    out = {}
+    with np.load(path, allow_pickle=False) as z:
+        for k in z.files:
+            buf = io.BytesIO()
+            np.lib.format.write_array(buf, z[k], version=version)
+            out[f"{k}.npy"] = buf.getvalue()
+    out.update(overrides or {})
+    p = path.with_name(path.stem + "_re.npz")
+    with zipfile.ZipFile(p, "w", compression=zipfile.ZIP_DEFLATED if compress else zipfile.ZIP_STORED) as zf:
+        for name, data in out.items():
+            zf.writestr(name, data)
+    return p
+
+
+def test_entries_with_version_2_headers_load(lib, good):
+    p = _entries_of(good, version=(2, 0))
+    np.testing.assert_array_equal(SkillLibrary.load(p).state().scale.pooled, lib.state().scale.pooled)
+
+
+@pytest.mark.parametrize("compress", [False, True])
+def test_an_entry_holding_less_than_its_header_declares_is_rejected_before_reading(good, compress):
+    """The 'means' entry declares 100 float64 (800 bytes) but holds 100 random bytes (incompressible)."""
+    import io
+
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, {"descr": "<f8", "fortran_order": False, "shape": (100,)})
+    data = buf.getvalue() + np.random.default_rng(0).bytes(100)
+    p = _entries_of(good, compress=compress, overrides={"means.npy": data})
+    with pytest.raises(ValueError, match=re.escape("entry 'means' declares (100,) float64 (800 bytes) but the file "
+                                                   "holds")):
+        SkillLibrary.load(p)
+
+
+def test_an_entry_declaring_an_overflowing_shape_is_rejected(good):
+    """(2^33, 2^33) float64: 2^69 bytes, which a 64-bit product would wrap to 0."""
+    import io
+
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, {"descr": "<f8", "fortran_order": False, "shape": (2 ** 33, 2 ** 33)})
+    p = _entries_of(good, overrides={"means.npy": buf.getvalue()})
+    with pytest.raises(ValueError, match=re.escape(f"entry 'means' declares ({2 ** 33}, {2 ** 33}) float64 "
+                                                   f"({2 ** 69} bytes) but the file holds")):
+        SkillLibrary.load(p)
