@@ -131,7 +131,7 @@ class Reference:
                 score = rule.merge_scores(d2m, np.maximum(support, support[i]), 1.0 / support + 1.0 / support[i],
                                           metric[2], h)
                 j = int(np.argmin(score))
-                if score[j] < 1.0 and (best is None or score[j] < best[0]):
+                if score[j] < 0.0 and (best is None or score[j] < best[0]):
                     best = (float(score[j]), i, j)
             if best is None:
                 break

@@ -495,3 +495,51 @@ def test_recognize_a_fraction_observes_the_shortest_prefix_that_covers_it(datase
     rec = json.loads((tmp_path / "recognition.json").read_text())
     assert rec["fraction"] == 0.6 and rec["files"][0]["decision"] in ("skill", "undecided", "unknown")
     assert main(["recognize", str(learned / "library.npz"), str(dataset / "held"), "--fraction", "0"]) == 1
+
+
+def test_main_without_a_command_prints_help_and_returns_2(capsys):
+    assert main([]) == 2
+    out = capsys.readouterr().out
+    assert out.startswith("usage: drake-skills") and "learn" in out and "recognize" in out
+
+
+def test_learn_on_an_empty_directory_is_a_clear_error_and_writes_nothing(tmp_path, capsys):
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "empty" / "notes.txt").write_text("no demonstrations here")
+    out = tmp_path / "out"
+    assert main(["learn", str(tmp_path / "empty"), "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert f"drake-skills learn: error: no demonstrations (.npz or .csv) found under '{tmp_path / 'empty'}'" in err
+    assert not (out / "library.npz").exists()
+
+
+def test_learn_rejects_a_config_for_an_existing_library_and_unknown_fields(dataset, learned, tmp_path, capsys):
+    cfg = tmp_path / "cfg.yaml"
+    cfg.write_text("n_basis_human: 6\n")
+    assert main(["learn", str(dataset / "train"), "--library", str(learned / "library.npz"), "--config", str(cfg),
+                 "--out", str(tmp_path / "x")]) == 1
+    assert "--config applies to a new library only; the existing library keeps its own" in capsys.readouterr().err
+    cfg.write_text("magic: 1\n")
+    assert main(["learn", str(dataset / "train"), "--config", str(cfg), "--out", str(tmp_path / "x")]) == 1
+    assert "magic" in capsys.readouterr().err
+    assert not (tmp_path / "x" / "library.npz").exists()
+
+
+def test_recognize_of_an_untaught_task_says_unknown_and_predicts_nothing(dataset, tmp_path, capsys):
+    """A library taught every task but one meets the held-out demonstration of that one: unknown, no prediction."""
+    untaught = TASKS[-1]
+    part = tmp_path / "part" / "subject1"
+    part.mkdir(parents=True)
+    for f in sorted((dataset / "train" / "subject1").iterdir()):
+        if not f.name.startswith(untaught):
+            shutil.copy(f, part / f.name)
+    assert main(["learn", str(tmp_path / "part"), "--out", str(tmp_path / "lib")]) == 0
+    lib = SkillLibrary.load(tmp_path / "lib" / "library.npz")
+    assert lib.n_components == len(TASKS) - 1
+    out = tmp_path / "rec"
+    assert main(["recognize", str(tmp_path / "lib" / "library.npz"), str(dataset / "held" / f"{untaught}_03.npz"),
+                 "--out", str(out)]) == 0
+    rec = json.loads((out / "recognition.json").read_text())
+    assert [(r["decision"], r["component"]) for r in rec["files"]] == [("unknown", None)]
+    with np.load(out / "predictions.npz") as pred:
+        assert pred["files"].shape == (0,)

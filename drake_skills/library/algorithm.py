@@ -422,7 +422,7 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
             score = rule.merge_scores(d2m, np.maximum(work.support, work.support[i]),
                                       1.0 / work.support + 1.0 / work.support[i], metric.logdet, h)
             j = int(np.argmin(score))
-            if score[j] < 1.0 and (best is None or score[j] < best[0]):
+            if score[j] < 0.0 and (best is None or score[j] < best[0]):
                 best = (float(score[j]), i, j)
         if best is None:
             break

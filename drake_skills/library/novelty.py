@@ -46,7 +46,8 @@ class NoveltyRule(Protocol):
 
     def merge_scores(self, mahalanobis_sq: np.ndarray, support: np.ndarray, inflate: np.ndarray, logdet: float,
                      dof: int) -> np.ndarray:
-        """Scores (K,) of merging pairs; below 1 merges, lowest first.
+        """Scores (K,) of merging pairs; below 0 merges, lowest first (kept in the log domain for the
+        log-likelihood form, so pairs far inside the threshold are still ordered).
 
         ``mahalanobis_sq`` are two-sample distances, ``support`` the larger support of
         each pair, ``inflate`` ``1/s_i + 1/s_j`` and ``logdet`` that of ``Sigma``.
@@ -93,7 +94,7 @@ class Chi2Rule:
 
     def merge_scores(self, mahalanobis_sq, support, inflate, logdet, dof) -> np.ndarray:
         threshold = chi2_ppf(self.merge_quantile, int(dof)) / np.asarray(support, float) ** self.consolidation
-        return np.asarray(mahalanobis_sq) / threshold
+        return np.asarray(mahalanobis_sq) / threshold - 1.0
 
     def splits(self, mahalanobis_sq, dof) -> np.ndarray:
         return np.asarray(mahalanobis_sq) > chi2_ppf(self.split_quantile, int(dof))
@@ -115,7 +116,7 @@ class LogLikRule:
         # log N(mu_i - mu_j | 0, Sigma (1/s_i + 1/s_j))
         logp = -0.5 * (dof * _LOG_2PI + logdet + dof * np.log(inflate) + np.asarray(mahalanobis_sq))
         threshold = self.log_T_merge + self.consolidation * np.log(np.asarray(support, float))
-        return np.exp(np.clip(threshold - logp, -50.0, 50.0))
+        return threshold - logp  # not exp(): clipped, pairs deep inside the threshold all tied
 
     def splits(self, mahalanobis_sq, dof) -> np.ndarray:
         return np.asarray(mahalanobis_sq) > chi2_ppf(self.split_quantile, int(dof))

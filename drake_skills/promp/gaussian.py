@@ -126,7 +126,8 @@ def log_density_from_mahalanobis(d2, L) -> np.ndarray:
 def gmm_log_density(x, weights, means, chols) -> np.ndarray:
     """``log sum_k weights_k N(x | means_k, chols_k chols_k^T)`` for x (n, d)."""
     x = np.atleast_2d(np.asarray(x, dtype=float))
-    lw = np.log(np.asarray(weights, dtype=float))
+    with np.errstate(divide="ignore"):  # a zero weight is valid: log 0 = -inf
+        lw = np.log(np.asarray(weights, dtype=float))
     comp = np.stack([log_density(x, m, L) for m, L in zip(means, chols)], axis=1)  # (n, K)
     return logsumexp(comp + lw[None, :], axis=1)
 

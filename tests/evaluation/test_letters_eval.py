@@ -22,9 +22,14 @@ def test_cli_eval_letters_quick_writes_kl_table_components_and_plots(tmp_path, c
     assert main(["eval", "letters", "--quick", "--out", str(out), "--no-progress", "--workers", "2"]) == 0
     header, rows = _rows(out / "kl_vs_samples.csv")
     assert [int(r[0]) for r in rows] == list(range(1, 8))  # 1..7 samples per class
-    for name in ("KL inc mean", "KL EM mean", "components mean"):
-        v = np.array([float(r[header.index(name)]) for r in rows])
-        assert np.isfinite(v).all() and (v > -1.0).all(), name
+    col = {name: np.array([float(r[header.index(name)]) for r in rows])
+           for name in ("KL inc mean", "KL EM mean", "components mean")}
+    # more samples per class bring the incremental library closer to the labeled baseline (observed: 114 -> 64)
+    assert (np.diff(col["KL inc mean"]) < 0).all(), col["KL inc mean"]
+    # batch EM with the true K recovers the labeled solution on five separable letters (observed: |KL| < 1e-10)
+    assert (np.abs(col["KL EM mean"]) < 1e-3).all(), col["KL EM mean"]
+    # about one component per letter (observed: exactly 5 at every count)
+    assert ((col["components mean"] >= 4) & (col["components mean"] <= 6)).all(), col["components mean"]
     header, rows = _rows(out / "components.csv")
     fractions = np.array([float(x) for x in rows[0][1:]])
     assert ((fractions >= 0) & (fractions <= 1)).all() and abs(fractions.sum() - 1) < 1e-9

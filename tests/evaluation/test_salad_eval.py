@@ -113,10 +113,13 @@ def test_kl_table_is_finite_and_covers_every_demo_count(reports):
     s, rep, _ = reports
     t = rep.tables["kl_vs_demos"]
     assert t.column("demos per task") == list(range(1, s.kl_per_task + 1))
-    for name in ("KL inc mean", "KL EM mean"):
-        v = np.array(t.column(name), float)
-        assert np.isfinite(v).all()
-        assert (v > -1.0).all()  # a Monte-Carlo KL is below 0 only by its noise
+    inc, em = (np.array(t.column(name), float) for name in ("KL inc mean", "KL EM mean"))
+    assert np.isfinite(inc).all() and np.isfinite(em).all()
+    # more demonstrations per task bring the library closer to the labeled baseline (observed: 172 -> 133)
+    assert inc[-1] < inc[0], inc
+    # batch EM with the true K and all the data lands on (nearly) the labeled solution (observed: |KL| < 1e-10);
+    # the incremental library, one demonstration at a time, is farther away
+    assert (np.abs(em) < 0.5).all() and (inc > em).all(), (inc, em)
 
 
 def test_response_errors_are_non_negative_and_earliest_fraction_is_on_the_grid(reports):

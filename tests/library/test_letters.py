@@ -81,4 +81,6 @@ def test_kl_to_labeled_baseline_falls_with_samples_per_shape(letters):
         kl_inc[n_per], kl_em[n_per] = float(np.mean(vals)), float(np.mean(vals_em))
     print("KL(labeled ML || incremental):", kl_inc, " KL(labeled ML || batch EM):", kl_em)
     assert kl_inc[7] < kl_inc[4] < kl_inc[2], kl_inc
-    assert all(np.isfinite(v) for v in kl_em.values())
+    # batch EM, given the true K and all the weights at once, finds the labeled solution on these five
+    # well-separated shapes (observed: |KL| < 1e-11, the same mixture up to rounding)
+    assert all(abs(v) < 1e-3 for v in kl_em.values()), kl_em

@@ -121,3 +121,56 @@ def test_trajectory_functions_reject_bad_input():
         trajectory_covariance(np.full((8, 8), np.inf), basis, 2)
     with pytest.raises(ValueError, match="at least 2 time steps"):
         trajectory_from_weights(np.zeros(8), basis, 2, n_steps=1)
+
+
+def test_basis_boundaries_types_and_dict():
+    b = GaussianBasis(2.0, width=2)  # the smallest basis; integral floats are accepted
+    assert type(b.n_basis) is int and b.n_basis == 2 and type(b.width) is float and b.width == 2.0
+    assert b.dict() == {"n_basis": 2, "width": 2.0, "normalized": False}
+    assert GaussianBasis(5, 0.5, True).dict() == {"n_basis": 5, "width": 0.5, "normalized": True}
+    assert phases(2).tolist() == [0.0, 1.0]
+    with pytest.raises(ValueError, match=r"^need at least 2 time steps, got 1$"):
+        phases(1)
+    with pytest.raises(ValueError, match=r"^n_basis must be an integer >= 2, got 1$"):
+        GaussianBasis(1)
+
+
+def test_phi_rejects_phases_outside_0_1_beyond_1e_9():
+    b = GaussianBasis(4)
+    assert b.phi([-1e-10, 1 + 1e-10]).shape == (2, 4)  # rounding is tolerated
+    with pytest.raises(ValueError, match=r"^phase must lie in \[0, 1\], got \[-0.5, 0.5\]$"):
+        b.phi([-0.5, 0.5])
+    with pytest.raises(ValueError, match=r"^phase must lie in \[0, 1\], got \[0, 1.5\]$"):
+        b.phi([0.0, 1.5])
+    assert b.phi([]).shape == (0, 4)
+
+
+def test_ridge_weights_defaults_and_small_trajectories():
+    Y = _smooth(12)
+    b = GaussianBasis(5)
+    np.testing.assert_array_equal(ridge_weights(Y, b), ridge_weights(Y, b, 1e-6))
+    assert not np.allclose(ridge_weights(Y, b), ridge_weights(Y, b, 1e-2))
+    assert ridge_weights(Y[:2], b).shape == (15,)  # two samples are enough with a ridge term
+    assert ridge_weights(Y[:3], b, 1e-6).shape == (15,)  # fewer samples than weights, with a ridge
+    assert ridge_weights(Y[:5], b, 0.0).shape == (15,)  # as many samples as weights, without one
+    with pytest.raises(ValueError, match=r"^4 samples cannot determine 5 weights without a ridge term$"):
+        ridge_weights(Y[:4], b, 0.0)
+    with pytest.raises(ValueError, match=r"^trajectory is too short: 1 sample\(s\), need at least 2$"):
+        ridge_weights(Y[:1], b)
+
+
+def test_trajectory_functions_default_to_100_steps_and_take_given_phases():
+    rng = np.random.default_rng(3)
+    b = GaussianBasis(6)
+    w = rng.standard_normal(12)
+    assert trajectory_from_weights(w, b, 2).shape == (100, 2)
+    z = np.array([0.0, 0.3, 0.9])
+    np.testing.assert_allclose(trajectory_from_weights(w, b, 2, z=z), b.phi(z) @ w.reshape(2, 6).T, rtol=0,
+                               atol=1e-14)
+    A = rng.standard_normal((12, 12))
+    S = A @ A.T
+    assert trajectory_covariance(S, b, 2).shape == (100, 2, 2)
+    cov = trajectory_covariance(S, b, 2, z=z)
+    Psi = np.kron(np.eye(2), b.phi(z)[1][None, :])
+    np.testing.assert_allclose(cov[1], Psi @ S @ Psi.T, rtol=1e-10)
+    assert cov.shape == (3, 2, 2)
