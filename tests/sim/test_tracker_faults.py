@@ -115,7 +115,7 @@ def test_with_every_fault_at_once_the_command_stays_finite_and_within_limits(tau
 
 
 def test_a_lost_wrist_makes_the_robot_hold(taught, monkeypatch):
-    """The marker is lost 0.3 s into the motion and never comes back: 'lost', the robot holds still."""
+    """The marker is lost 0.1 s into the motion (before any commit) and never comes back: 'lost', the robot holds still."""
     import drake_skills.systems.wrist_faults as wf
 
     sim, demo = taught
@@ -124,7 +124,7 @@ def test_a_lost_wrist_makes_the_robot_hold(taught, monkeypatch):
     def losing(trial, f, rng, margin):
         feed = real(trial, f, rng, margin=margin)
         pos = np.array(feed.positions)
-        pos[feed.times >= trial.start_time + 0.3] = np.nan
+        pos[feed.times >= trial.start_time + 0.1] = np.nan
         return type(feed)(feed.times, pos, feed.stamps, feed.kinds)
 
     monkeypatch.setattr(sim.config, "faults", TrackerFaults(latency=1e-9))  # "any" fault: the feed path is taken
@@ -134,6 +134,37 @@ def test_a_lost_wrist_makes_the_robot_hold(taught, monkeypatch):
     _within_limits(log)
     moved = np.abs(log.q_desired - log.q_desired[0]).max()
     assert moved < 1e-6, moved  # lost before any commit: the robot never left its hold pose
+
+
+def test_a_wrist_lost_after_the_commit_stops_the_robot(taught, monkeypatch):
+    """The marker is lost 0.2 s after the robot committed: 'lost', nothing executed, the command slows to rest."""
+    import drake_skills.systems.wrist_faults as wf
+    from drake_skills.systems.decision_rule import DecisionRule
+
+    sim, demo = taught
+    monkeypatch.setattr(sim.config, "faults", TrackerFaults(latency=1e-9))
+    clean, _ = sim.run_trial(demo)
+    assert np.isfinite(clean.plan_start) and clean.commits, "the perfect-tracker trial commits while moving"
+    real = wf.tracker_feed
+    lost_at = clean.plan_start - clean.start_time + 0.2  # s after the trial start
+
+    def losing(trial, f, rng, margin):
+        feed = real(trial, f, rng, margin=margin)
+        pos = np.array(feed.positions)
+        pos[feed.times >= trial.start_time + lost_at] = np.nan
+        return type(feed)(feed.times, pos, feed.stamps, feed.kinds)
+
+    monkeypatch.setattr(wf, "tracker_feed", losing)
+    outcome, log = sim.run_trial(demo)
+    assert outcome.status == "lost" and outcome.component is None and not outcome.executed
+    _within_limits(log)
+    t = log.times - outcome.start_time
+    # once lost (lost_timeout after the marker), the command decelerates smoothly to rest and
+    # never speeds up again (measured: 1.36 -> 0.015 rad/s over the 0.5 s the trial has left)
+    speed = np.abs(log.qd_desired[t >= lost_at + DecisionRule().lost_timeout]).max(axis=1)
+    assert speed.size >= 5
+    assert np.all(np.diff(speed) <= 1e-9), speed
+    assert speed[-1] < 0.05, speed[-1]  # rad/s
 
 
 def test_over_lcm_the_station_s_faulty_tracker_leaves_the_commands_within_limits_and_the_decision_as_without(
