@@ -469,8 +469,14 @@ def test_save_appends_npz_and_syncs_before_renaming(lib, tmp_path, monkeypatch):
 def test_a_fitted_library_whose_components_were_all_deleted_round_trips(tmp_path):
     import library_states as ls
 
+    from drake_skills.library.scale import SharedScale
+
     cfg = LibraryConfig(n_basis_human=4, n_basis_robot=3)
-    lib = ls.library(cfg, [], dim_human=2, dim_robot=1, next_id=5, n_seen=9)
+    d = 2 * 4 + 1 * 3
+    # as a real library whose components were all deleted: the scale counted the 9 demonstrations,
+    # its pooled scatter (the sum of the components') is empty
+    gone = SharedScale(9, np.zeros(d), np.full(d, 9.0), np.zeros((d, d)), 0.0)
+    lib = ls.library(cfg, [], dim_human=2, dim_robot=1, next_id=5, n_seen=9, scale=gone)
     back = SkillLibrary.load(lib.save(tmp_path / "gone")).state()
     assert (back.dim_human, back.dim_robot, back.next_id, back.n_seen, back.components) == (2, 1, 5, 9, ())
     np.testing.assert_array_equal(back.scale.pooled, lib.state().scale.pooled)
