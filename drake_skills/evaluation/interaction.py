@@ -206,9 +206,7 @@ def replay_commits(library, demo: Demonstration, workspace: Workspace, rule=None
     rule = rule or DecisionRule()
     times = np.arange(demo.t[0], demo.t[-1] + 1e-12, GATING_PERIOD)
     raw = np.stack([np.interp(times, demo.t, demo.human[:, d]) for d in range(demo.human.shape[1])], axis=1)
-    y = workspace.normalize(raw, subtract_start=False)
-    if library.config.subtract_start:
-        y = y - y[0]
+    y = workspace.normalize(raw, subtract_start=library.config.subtract_start)
     state = GatingDecision()
     for t, sample in zip(times - times[0], y):
         state = gating_step(state, float(t), sample, library, rule)
