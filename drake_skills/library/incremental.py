@@ -77,6 +77,10 @@ from drake_skills.promp.basis import ridge_weights
 from drake_skills.promp.interaction import InteractionProMP
 from drake_skills.promp.preprocessing import arc_length, resample_in_time
 
+#: Normalized motions (Eq. 14 and their path) a library keeps for queries about the same
+#: samples: the gating, the conditioner and ``predict_robot`` ask about one prefix each tick.
+PATH_MEMO = 4
+
 __all__ = ["Component", "ComponentState", "DataWarning", "LibraryChangedError", "LibraryConfig", "LibraryState",
            "NOVELTY_TESTS", "Recognition", "SkillLibrary", "UNITS_RANGE", "UnitsWarning", "UnknownSkillError", "Update",
            "WorkspaceBounds", "WorkspaceWarning"]
@@ -127,6 +131,7 @@ class SkillLibrary(RecognitionMixin, FileMixin):
         self._with_workspace: bool | None = False  # None: unknown (a file written before it was kept)
         self._warned: set[str] = set()  # DataWarning kinds already issued by this object
         self._memo: dict = {}  # caches of one library version: name -> ((components, scale), value)
+        self._paths: tuple = ()  # the last PATH_MEMO motions normalized: ((key, _Path), ...)
         self.dim_human_: int | None = None
         self.dim_robot_: int | None = None
 
@@ -315,6 +320,10 @@ class SkillLibrary(RecognitionMixin, FileMixin):
         if self.dim_human_ is not None and human.shape[1] != self.dim_human_:
             raise ValueError(f"{where + ': ' if where else ''}human has {human.shape[1]} columns, "
                              f"the library was built on {self.dim_human_}")
+        key = (bool(normalized), workspace, human.shape, human.tobytes())
+        for k, hit in self._paths:  # the gating, the conditioner and predict_robot ask about the same samples
+            if k[0] == key[0] and k[1] is key[1] and k[2] == key[2] and k[3] == key[3]:
+                return hit
         if normalized:
             if workspace is not None:
                 raise ValueError("normalized samples take no workspace: Eq. (14) is already applied")
@@ -331,7 +340,9 @@ class SkillLibrary(RecognitionMixin, FileMixin):
         vertices, s = arc_length(human, cfg.resample_tolerance)
         if not s[-1] > 0:
             raise ValueError(f"{where + ': ' if where else ''}human trajectory does not move: its path length is 0")
-        return _Path(human, vertices, s)
+        path = _Path(human, vertices, s)
+        self._paths = ((key, path),) + self._paths[:PATH_MEMO - 1]  # one assignment: safe across threads
+        return path
 
     def path_length(self, human, *, workspace: Workspace | None = None, normalized: bool = False,
                     where: str | None = None) -> float:

@@ -53,10 +53,19 @@ def _basis_at(basis: GaussianBasis, f: float, m: int):
     return Phi, PtP, Pinv
 
 
+@lru_cache(maxsize=256)
 def _basis_terms(basis: GaussianBasis, phases: tuple, m: int):
-    """:func:`_basis_at` for each phase, stacked: arrays of shapes (J, m, N), (J, N, N), (J, N, N)."""
+    """:func:`_basis_at` for each phase, stacked: arrays of shapes (J, m, N), (J, N, N), (J, N, N) (cached, read-only)."""
     parts = [_basis_at(basis, f, m) for f in phases]
-    return tuple(np.stack([p[i] for p in parts]) for i in range(3))
+    out = tuple(np.stack([p[i] for p in parts]) for i in range(3))
+    for a in out:
+        a.setflags(write=False)
+    return out
+
+
+#: Stacked eigendecompositions kept per cache for whole phase sets (the sets a controller
+#: meets recur: the same few bands and prefix sizes), besides the one entry per phase.
+_STACKED_ENTRIES = 64
 
 
 def _whitened_gram(PtP: np.ndarray, chol: np.ndarray, D: int):
@@ -110,14 +119,20 @@ def score_phases(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarray
     Phi, PtP, Pinv = _basis_terms(basis, phases, int(m))
     if cache is None:
         lam, Q = _whitened_gram(PtP, chol, D)
-    else:  # one entry per (phase, m): the phase sets asked for vary, the phases themselves recur
-        missing = [j for j, f in enumerate(phases) if (f, int(m)) not in cache]
-        if missing:
-            lam_m, Q_m = _whitened_gram(PtP[missing], chol, D)
-            for i, j in enumerate(missing):
-                cache[(phases[j], int(m))] = (lam_m[i], Q_m[i])
-        lam = np.stack([cache[(f, int(m))][0] for f in phases])
-        Q = np.stack([cache[(f, int(m))][1] for f in phases])
+    else:
+        stacked = cache.setdefault("stacked", {})
+        hit = stacked.get((phases, int(m)))
+        if hit is None:  # one entry per (phase, m): the phase sets asked for vary, the phases themselves recur
+            missing = [j for j, f in enumerate(phases) if (f, int(m)) not in cache]
+            if missing:
+                lam_m, Q_m = _whitened_gram(PtP[missing], chol, D)
+                for i, j in enumerate(missing):
+                    cache[(phases[j], int(m))] = (lam_m[i], Q_m[i])
+            hit = (np.stack([cache[(f, int(m))][0] for f in phases]), np.stack([cache[(f, int(m))][1] for f in phases]))
+            if len(stacked) >= _STACKED_ENTRIES:
+                stacked.pop(next(iter(stacked)))
+            stacked[(phases, int(m))] = hit
+        lam, Q = hit
     J, _, N = Phi.shape
     K = means_h.shape[0]
     Mt = means_h.reshape(K, D, N).transpose(0, 2, 1)       # (K, N, D)

@@ -1,0 +1,98 @@
+"""The caches that make a controller's queries cheap never change an answer.
+
+A controller asks about the same prefix three times per tick (the gating recognizes
+it, the conditioner estimates its phase and conditions on it), so a library keeps the
+last few normalized motions (``PATH_MEMO``) and prefix recognition keeps whole phase
+sets' eigendecompositions (``prefix._STACKED_ENTRIES``). Each cached answer must be
+the one computed from scratch, and a changed input must never meet a stale entry.
+"""
+import numpy as np
+import pytest
+
+from drake_skills import LibraryConfig, SkillLibrary
+from drake_skills.library import incremental, prefix
+from drake_skills.library.prefix import PHASE_GRID, score_phases
+from drake_skills.promp.preprocessing import Workspace
+
+from synthetic import WORKSPACE, synthetic_demo
+
+
+def _lib(seed=0):
+    rng = np.random.default_rng(seed)
+    lib = SkillLibrary(LibraryConfig(workspace=WORKSPACE))
+    for i in range(8):
+        lib.partial_fit(synthetic_demo(i % 2, rng))
+    return lib, rng
+
+
+def _same_recognition(a, b):
+    assert a.status == b.status and a.component == b.component
+    np.testing.assert_array_equal(a.log_likelihoods, b.log_likelihoods)
+    np.testing.assert_array_equal(a.mahalanobis_sq, b.mahalanobis_sq)
+    np.testing.assert_array_equal(a.phases, b.phases)
+
+
+def test_a_remembered_motion_gives_the_answers_of_a_fresh_library_bit_for_bit():
+    lib, rng = _lib()
+    fresh = SkillLibrary.from_state(lib.state())
+    prefix_ = synthetic_demo(1, rng).human[:50]
+    first = lib.recognize(prefix_)
+    again = lib.recognize(prefix_)            # from the memo
+    _same_recognition(first, again)
+    _same_recognition(again, fresh.recognize(prefix_))
+    k = first.phases.argmax()
+    cid = first.ids[k]
+    assert lib.estimate_phase(prefix_, cid) == fresh.estimate_phase(prefix_, cid)
+    m1, c1 = lib.predict_robot(prefix_, component=cid)
+    m2, c2 = fresh.predict_robot(prefix_, component=cid)
+    np.testing.assert_array_equal(m1, m2)
+    np.testing.assert_array_equal(c1, c2)
+
+
+def test_an_input_changed_in_place_is_normalized_again():
+    lib, rng = _lib()
+    y = synthetic_demo(0, rng).human[:60].copy()
+    before = lib.path_length(y)
+    y[30:] *= 1.5                               # same array object, same shape, other samples
+    after = lib.path_length(y)
+    assert after != pytest.approx(before, rel=1e-3)
+    assert after == pytest.approx(SkillLibrary.from_state(lib.state()).path_length(y), rel=0, abs=0)
+
+
+def test_the_memo_tells_workspaces_and_normalized_input_apart():
+    lib, rng = _lib()
+    y = synthetic_demo(0, rng).human[:60]
+    wide = Workspace(np.full(3, -10.0), np.full(3, 10.0))   # twice the extent: about half the path
+    base = lib.path_length(y)
+    # not exactly half: the arc length counts moves of resample_tolerance normalized units
+    assert lib.path_length(y, workspace=wide) == pytest.approx(0.5 * base, rel=0.02)
+    assert lib.path_length(y, workspace=wide) == SkillLibrary.from_state(lib.state()).path_length(y, workspace=wide)
+    assert lib.path_length(y, normalized=True) == pytest.approx(
+        SkillLibrary.from_state(lib.state()).path_length(y, normalized=True), rel=0, abs=0)
+    assert lib.path_length(y) == base
+
+
+def test_the_memo_keeps_only_the_last_few_motions():
+    lib, rng = _lib()
+    ys = [synthetic_demo(0, rng).human[:40 + i] for i in range(incremental.PATH_MEMO + 3)]
+    for y in ys:
+        lib.path_length(y)
+    assert len(lib._paths) == incremental.PATH_MEMO
+
+
+def test_stacked_eigendecompositions_equal_the_uncached_ones_and_stay_bounded():
+    lib, rng = _lib()
+    cfg = lib.config
+    comps = lib._components
+    metric = lib._metric()
+    inflate = 1.0 + 1.0 / comps.support
+    y = lib.human_samples(synthetic_demo(1, rng).human[:60], observed_fraction=0.5)
+    cache: dict = {}
+    sets = [tuple(PHASE_GRID[i:j]) for i in range(20) for j in range(i + 1, 21, 2)]
+    assert len(sets) > prefix._STACKED_ENTRIES
+    for phases in sets + sets[:5]:           # the first five again, after they were evicted
+        got = score_phases(y, phases, comps.means_h, inflate, metric.chol, cfg.basis_human, 0.01, cache)
+        ref = score_phases(y, phases, comps.means_h, inflate, metric.chol, cfg.basis_human, 0.01, None)
+        for a, b in zip(got, ref):
+            np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-10)
+    assert len(cache["stacked"]) == prefix._STACKED_ENTRIES
