@@ -37,12 +37,19 @@ class DecisionRule:
     # no acceptable wrist sample for longer than this (s; NaN, stale, outliers: see
     # drake_skills.systems.normalizer) and the wrist is lost: the robot holds
     lost_timeout: float = 0.5
+    # the wrist at rest while the committed skill's estimated phase is below this: a pause,
+    # perhaps, not the end; a whole-motion answer then that names another skill is not
+    # trusted ("undecided": the robot holds and asks) -- the whole-motion test assumes a
+    # complete motion, and a prefix taken for one can look like another skill
+    end_phase: float = 0.8
 
     def __post_init__(self):
         for name in ("min_travel", "still_duration", "still_radius", "timeout", "redecide_period", "lost_timeout"):
             v = getattr(self, name)
             if not np.isfinite(v) or v <= 0:
                 raise ValueError(f"DecisionRule.{name} must be positive, got {v!r}")
+        if not (np.isfinite(self.end_phase) and 0.0 <= self.end_phase <= 1.0):
+            raise ValueError(f"DecisionRule.end_phase must be in [0, 1], got {self.end_phase!r}")
         if isinstance(self.confirmations, bool) or int(self.confirmations) != self.confirmations \
                 or self.confirmations < 1:
             raise ValueError(f"DecisionRule.confirmations must be an integer >= 1, got {self.confirmations!r}")

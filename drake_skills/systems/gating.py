@@ -213,6 +213,15 @@ def recognize_motion(library: SkillLibrary, motion: ObservedMotion, *, whole: bo
     return library.recognize(motion.samples, normalized=True, observed_fraction=1.0 if whole else None)
 
 
+def _paused(state: GatingDecision, motion: ObservedMotion, rule: DecisionRule) -> bool:
+    """At rest before the time-out while the last re-decision put the committed skill short of ``rule.end_phase``?"""
+    b = state.belief
+    if rule.decision_time is not None or b is None or b.status != "skill" or b.best != state.component:
+        return False
+    elapsed = motion.times[-1] - motion.times[0]
+    return elapsed < rule.timeout - 1e-12 and np.isfinite(b.phase) and b.phase < rule.end_phase
+
+
 def _belief(time: float, rec) -> Belief:
     if rec is None:
         return Belief(float(time), "unknown", None, 0.0, float("nan"))
@@ -257,6 +266,12 @@ def gating_step(state: GatingDecision, time: float, sample: np.ndarray, library:
         rec = recognize_motion(library, motion, whole=True)
         b = _belief(t, rec)
         comp = b.best if b.status == "skill" else None
+        if comp is not None and state.component is not None and comp != state.component \
+                and _paused(state, motion, rule):
+            log.debug("gating: at rest with %d at phase %.2f, the whole-motion answer %d is not trusted",
+                      state.component, state.belief.phase, comp)
+            b = replace(b, status="undecided", best=None)
+            comp = None
         changed = comp != state.component
         revisions = state.revisions + (1 if changed and state.component is not None else 0)
         commits = state.commits + ((comp,) if comp is not None and changed else ())

@@ -174,3 +174,59 @@ def test_replayed_motion_is_decided_in_a_simulation(library, demo):
     assert decision.final and decision.component == k and decision.commits == (k,)
     assert decision.commit_time < demo.duration  # committed while the hand was still moving
     assert demo.duration < decision.beliefs[-1].time < demo.duration + 0.4  # the final answer at rest
+
+
+class _PhaseScripted:
+    """A library whose prefix answer is skill 7 at a set phase, and whose whole-motion answer is set too."""
+    n_components = 2
+
+    def __init__(self, phase, whole):
+        self.phase, self.whole = phase, whole
+
+    def recognize(self, y, normalized, observed_fraction):
+        from drake_skills.library.views import Recognition
+        k = self.whole if observed_fraction == 1.0 else 7
+        post = np.array([1.0, 0.0]) if k == 7 else np.array([0.0, 1.0])
+        phases = np.full(2, 1.0 if observed_fraction == 1.0 else self.phase)
+        return Recognition(k, (7, 8), post, np.zeros(2), np.zeros(2), 3, "skill", phases, post)
+
+
+def _pause_then_rest(lib, rule, rest_samples=40):
+    """Move 0 -> 20 normalized units over 60 samples at 64 Hz, then hold still (the wrist at rest)."""
+    moving = np.outer(np.linspace(0, 20, 60), [1, 0, 0])
+    samples = np.vstack([moving, np.repeat(moving[-1:], rest_samples, axis=0)])
+    state = GatingDecision()
+    for i, p in enumerate(samples):
+        state = gating_step(state, i / 64, p, lib, rule)
+        if state.final:
+            break
+    return state
+
+
+@pytest.mark.parametrize("phase, whole, status, component", [
+    (0.45, 8, "undecided", None),   # at rest at 45 % of skill 7: the whole-motion answer 8 is not trusted
+    (0.45, 7, "skill", 7),          # ... the same answer as the commit is
+    (0.85, 8, "skill", 8),          # past end_phase (0.8): the rest is the end, the switch stands
+])
+def test_a_rest_mid_skill_does_not_switch_to_another_skill(phase, whole, status, component):
+    """Styled subject 3 (seed 1) paused at 45 % of a dressing motion; the whole-motion test on that prefix said bowl."""
+    rule = DecisionRule(end_phase=0.8)
+    state = _pause_then_rest(_PhaseScripted(phase, whole), rule)
+    assert state.final and state.commits[0] == 7
+    assert state.status == status and state.component == component
+    assert state.revisions == (0 if component == 7 else 1)
+    assert state.time < rule.timeout  # decided at rest, not at the time-out
+
+
+def test_at_the_time_out_the_whole_motion_answer_stands_whatever_the_phase():
+    rule = DecisionRule(end_phase=0.8, timeout=1.2)   # 60 moving samples + 40 still = 1.55 s > 1.2 s
+    state = _pause_then_rest(_PhaseScripted(0.45, 8), DecisionRule(end_phase=0.8, timeout=1.2, still_duration=5.0))
+    assert rule.timeout <= state.time < rule.timeout + 1 / 32
+    assert state.final and state.status == "skill" and state.component == 8
+
+
+def test_end_phase_must_be_a_fraction():
+    for bad in (-0.1, 1.5, float("nan")):
+        with pytest.raises(ValueError, match=r"DecisionRule.end_phase must be in \[0, 1\]"):
+            DecisionRule(end_phase=bad)
+    assert DecisionRule(end_phase=0.0).end_phase == 0.0   # 0: never doubt a rest
