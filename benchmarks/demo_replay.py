@@ -5,7 +5,8 @@ sample by sample to ``systems.gating.gating_step`` (via
 ``evaluation.interaction.replay_commits``) against a library that, as in the demo, learns a
 trial's demonstration only when the robot asks (the final answer is not a skill). Counts:
 skills executed right and wrong, asked (a taught task answered unknown or undecided), new
-(an untaught task, then taught), and the first commits on taught and untaught tasks.
+(an untaught task, then taught), the first commits on taught and untaught tasks, and the share
+of the person's path done at the commit (``evaluation.interaction.commit_share``).
 
 Not a speed benchmark: the experiment behind RESULTS.md's "The rest rule", kept so that it
 can be re-run. 10 subjects x 2 seeds: ~45 s::
@@ -22,7 +23,7 @@ from dataclasses import replace
 import numpy as np
 
 from drake_skills import SkillLibrary
-from drake_skills.evaluation.interaction import replay_commits
+from drake_skills.evaluation.interaction import commit_share, replay_commits
 from drake_skills.scenario.salad import generate_subject
 from drake_skills.sim.config import load_config
 from drake_skills.sim.demo import trial_stream
@@ -45,6 +46,7 @@ def main() -> int:
     a = ap.parse_args()
     tot = dict(trials=0, right=0, wrong=0, asked=0, new=0)
     first = {"taught": [0, 0], "untaught": [0, 0]}   # first commit right, wrong
+    shares = []   # path share at the first commit of a skill executed right
     for subj in _ints(a.subjects):
         for seed in _ints(a.seeds):
             cfg = replace(load_config(None), seed=seed, subject=subj)
@@ -68,6 +70,7 @@ def main() -> int:
                     taught.add(d.task)
                 elif label.get(comp) == d.task:
                     tot["right"] += 1
+                    shares.append(commit_share(d, ws, lib.config.resample_tolerance, g.commit_time))
                 else:
                     tot["wrong"] += 1
                     print(f"wrong: subject {subj} seed {seed} trial {i + 1}: {d.task} executed as {label.get(comp)} "
@@ -75,6 +78,10 @@ def main() -> int:
     print(" ".join(f"{k} {v}" for k, v in tot.items()))
     for k, (ok, bad) in first.items():
         print(f"first commits on {k} tasks: {ok} right, {bad} wrong")
+    if shares:
+        q = np.nanpercentile(shares, [25, 50, 75])
+        print(f"path share at the commit of the skills executed right: mean {np.nanmean(shares):.2f}, "
+              f"quartiles {q[0]:.2f} / {q[1]:.2f} / {q[2]:.2f}")
     return 0
 
 
