@@ -340,7 +340,7 @@ class SkillLibrary(RecognitionMixin, FileMixin):
         vertices, s = arc_length(human, cfg.resample_tolerance)
         if not s[-1] > 0:
             raise ValueError(f"{where + ': ' if where else ''}human trajectory does not move: its path length is 0")
-        path = _Path(human, vertices, s)
+        path = _Path(np.array(human, dtype=float), vertices, s)  # a copy: the caller's array may change later
         self._paths = ((key, path),) + self._paths[:PATH_MEMO - 1]  # one assignment: safe across threads
         return path
 

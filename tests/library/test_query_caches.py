@@ -96,3 +96,15 @@ def test_stacked_eigendecompositions_equal_the_uncached_ones_and_stay_bounded():
         for a, b in zip(got, ref):
             np.testing.assert_allclose(a, b, rtol=1e-10, atol=1e-10)
     assert len(cache["stacked"]) == prefix._STACKED_ENTRIES
+
+
+def test_a_remembered_motion_does_not_share_the_callers_array():
+    """normalized=True takes the caller's array as is; the memo keeps its own copy of the samples."""
+    lib, rng = _lib()
+    y = lib.human_samples(synthetic_demo(0, rng).human[:60])       # already normalized
+    first = lib._normalized(y, None, True)
+    kept = y.copy()
+    y[:] = 0.0                                                      # the caller reuses its buffer
+    again = lib._normalized(kept, None, True)                       # the old samples, another array
+    assert again is first
+    np.testing.assert_array_equal(again.y, kept)
