@@ -212,12 +212,22 @@ def kl_gaussian(mu0, S0, mu1, S1) -> float:
 
 
 def sample_mixture(weights, means, covs, n: int, random_state=None) -> np.ndarray:
-    """Draw ``n`` samples from a Gaussian mixture, shape (n, d)."""
+    """Draw ``n`` samples from a Gaussian mixture, shape (n, d).
+
+    Each component is drawn as ``mean + z L^T`` with ``L`` from :func:`cholesky`,
+    so a rank-deficient covariance is sampled with the same jitter its density
+    is evaluated with (for a positive definite one, the draws equal numpy's
+    ``multivariate_normal(..., method="cholesky")``). A component of weight 0 is
+    never drawn from and its covariance is not factorized.
+    """
     rng = check_random_state(random_state)
     weights = np.asarray(weights, float)
     counts = rng.multinomial(n, weights / weights.sum())
-    out = [rng.multivariate_normal(means[k], covs[k], size=c, method="cholesky")
-           for k, c in enumerate(counts) if c > 0]
+    out = []
+    for k, c in enumerate(counts):
+        if c > 0:
+            L = cholesky(covs[k])
+            out.append(np.asarray(means[k], float) + rng.standard_normal((c, L.shape[0])) @ L.T)
     x = np.concatenate(out)
     return x[rng.permutation(n)]
 

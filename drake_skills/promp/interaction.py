@@ -360,14 +360,16 @@ class InteractionProMP:
     def predict_robot(self, human_obs, z_obs=None, *, n_steps: int = 100, observation_noise: float | None = None):
         """Robot trajectory distribution given observed human samples.
 
-        ``z_obs`` defaults to evenly spaced phases over [0, 1] (the full motion).
+        ``z_obs`` defaults to evenly spaced phases over [0, 1] (the full motion),
+        which needs at least 2 samples.
 
         Returns
         -------
         mean : array, shape (n_steps, D_r)
         cov : array, shape (n_steps, D_r, D_r)
         """
-        y = np.asarray(human_obs, dtype=float)
         if z_obs is None:
-            z_obs = phases(max(int(y.shape[0]) if y.ndim >= 1 else 0, 2))
-        return self.condition(y, z_obs, observation_noise).robot_distribution(n_steps)
+            human_obs = as_finite_array(human_obs, "observed human samples", shape=(None, self.dim_human),
+                                        min_rows=2)
+            z_obs = phases(human_obs.shape[0])
+        return self.condition(human_obs, z_obs, observation_noise).robot_distribution(n_steps)
