@@ -371,3 +371,17 @@ def test_components_the_bound_rules_out_report_minus_inf_inf_zero_and_their_path
     np.testing.assert_array_equal(rec.dof[out], [21.0, 21.0, 21.0])
     np.testing.assert_allclose(rec.phases[out], [1.0 / 100, 1.0 / 60, 1.0], rtol=1e-12)
     assert np.isfinite(rec.log_likelihoods[0]) and rec.responsibilities[0] == pytest.approx(1.0, abs=1e-12)
+
+
+def test_a_beginning_of_under_5_percent_is_conditioned_on_two_samples_at_phase_005():
+    """n_samples 30: the phase 0.05 of a beginning the band cannot place later gives round(1.5) = 2 samples."""
+    lib = _teach(LibraryConfig(n_samples=30, n_basis_human=5, n_basis_robot=5), WS)
+    human = synthetic_demo(0, np.random.default_rng(10), T=60).human
+    start = human[:int(np.searchsorted(np.linalg.norm(human - human[0], axis=1), 0.1)) + 2]
+    yn = WS.normalize(start)
+    for k in (c.id for c in lib.components):
+        assert lib.estimate_phase(start, k, workspace=WS) == 0.05
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DataWarning)
+            got = lib.predict_robot(start, workspace=WS, component=k, n_steps=10)[0]
+        np.testing.assert_allclose(got, _reference_prediction(lib, yn, k, 0.05, 10), rtol=1e-9, atol=1e-9)
