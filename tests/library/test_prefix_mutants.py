@@ -131,10 +131,11 @@ def test_score_prefix_takes_the_most_likely_phase_of_each_band_and_averages_the_
 
 
 # ------------------------------------------------------------------------------------------------ prefix_bound
-@pytest.mark.parametrize("width, normalized", [(1.0, True), (0.3, True), (1.0, False), (0.05, True)])
+@pytest.mark.parametrize("width, normalized", [(1.0, True), (0.3, True), (1.0, False), (0.212, True), (0.05, True)])
 def test_basis_rows_and_columns_are_the_basis_at_those_phases(width, normalized):
-    """Both forms equal GaussianBasis.phi (rtol 1e-12), the column form with the basis axis first; the narrow
-    basis (width 0.05) takes the direct form where the recurrence would overflow."""
+    """Both forms equal GaussianBasis.phi (rtol 1e-12), the column form with the basis axis first. The narrow
+    bases take the direct form where the recurrence would overflow: at width 0.212 (7 functions) rho^6 =
+    exp(6^2 / 0.212^2) = exp(801) is past the largest double, (N - 1)^2 / w^2 = 801 > 600."""
     basis = GaussianBasis(7, width, normalized)
     z = np.linspace(0.0, 1.0, 24).reshape(4, 6)
     ref = basis.phi(z.ravel()).reshape(4, 6, 7)
@@ -179,9 +180,11 @@ def test_the_lower_bound_lies_below_the_exact_fit_statistic_and_is_not_vacuous(c
         prefix_bound.fit_lower_bounds(means, inflate, GRID, y, sigma_max, basis, noise))
 
 
-def test_the_bound_is_exact_arithmetic_of_its_formula_at_one_probe_set():
-    """|r_I|^2 / (sigma^2 + c lambda_max lambda_I) - (E + dropped) / sigma^2, written out for 8 probes."""
-    y, means, inflate, chol, basis, S = _problem(0, K=3, m=30, spread=3.0)
+@pytest.mark.parametrize("normalized", [True, False])
+def test_the_bound_is_exact_arithmetic_of_its_formula_at_one_probe_set(normalized):
+    """|r_I|^2 / (sigma^2 + c lambda_max lambda_I) - (E + dropped) / sigma^2, written out for 8 probes; the
+    basis not normalized too (its rows do not sum to 1, so lambda_I's row-sum factor counts)."""
+    y, means, inflate, chol, basis, S = _problem(0, K=3, m=30, spread=3.0, normalized=normalized)
     noise, sigma_max = 0.03, float(np.linalg.eigvalsh(S)[-1])
     phases = np.array([0.25, 0.6, 1.0])
     got = prefix_bound.fit_lower_bounds(means, inflate, phases, y, sigma_max, basis, noise)
@@ -189,7 +192,7 @@ def test_the_bound_is_exact_arithmetic_of_its_formula_at_one_probe_set():
     N = basis.n_basis
     probes = np.unique(np.linspace(0, m - 1, 8).round().astype(int))
     E = prefix_bound.fit_residual(y, phases, basis)
-    eps = N * 1e-10 * m
+    eps = N * 1e-10 * m * (1.0 if normalized else N)
     for j, f in enumerate(phases):
         Phi_I = basis.phi(np.linspace(0.0, f, m)[probes])
         lam = Phi_I.sum(axis=0).max() * Phi_I.sum(axis=1).max()
