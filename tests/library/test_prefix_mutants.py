@@ -224,3 +224,26 @@ def test_prefix_candidates_keeps_every_component_that_fits_at_an_allowed_phase_a
     expect = ((b3 <= threshold) & allowed).any(axis=1) & ((b8 <= threshold) & allowed).any(axis=1)
     np.testing.assert_array_equal(keep, expect)
     assert keep[:2].all() and not keep[4:].any(), keep
+
+
+def test_prefix_candidates_keeps_a_skill_whose_samples_hold_much_the_basis_cannot_span():
+    """Samples of a skill plus a fast oscillation no basis function holds (fit residual E / sigma^2 in the
+    hundreds): d2 leaves E out and the skill fits at every phase of its band, so the bound must subtract E at
+    every allowed phase, not only at the first; the components far away are still ruled out."""
+    y, means, inflate, _, basis, S = _problem(11, K=3, m=40, spread=0.0)
+    S = 1e-4 * S                     # a tight skill: the bound's denominator is about sigma^2, so E must count
+    chol = np.linalg.cholesky(S)
+    t = np.linspace(0.0, 1.0, 40)
+    wiggle = 0.8 * np.sin(2 * np.pi * 13 * t)[:, None] * np.array([1.0, -0.5, 0.8])
+    y = y + wiggle
+    means = means + np.array([0.0, 20.0, 40.0])[:, None]
+    noise, sigma_max, threshold = 0.03, float(np.linalg.eigvalsh(S)[-1]), 60.0
+    allowed = np.zeros((3, 20), bool)
+    allowed[:, 5:] = True
+    _, d2, _ = score_phases(y, GRID, means, inflate, chol, basis, noise)
+    E = prefix_bound.fit_residual(y, GRID, basis)
+    assert E[5:].min() / noise > 100.0
+    fits = ((d2.T <= threshold) & allowed).any(axis=1)
+    assert fits.tolist() == [True, False, False]
+    keep = prefix_bound.prefix_candidates(means, inflate, GRID, allowed, y, sigma_max, basis, noise, threshold)
+    assert keep.tolist() == [True, False, False]
