@@ -1,5 +1,6 @@
 """The library's data warnings: a query without the workspace it was trained with, and data in other
 units (the units guard), each once per library; whether it was trained with a workspace is kept in its file."""
+import inspect
 import json
 import warnings
 
@@ -36,11 +37,16 @@ def _caught(fn):
 
 def test_a_reach_in_metres_without_a_workspace_warns_once_naming_what_to_pass():
     lib = SkillLibrary()
-    got = _caught(lambda: [lib.partial_fit(_reach(0.3, seed=i)) for i in range(3)])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for i in range(3):  # called from this frame itself (a lambda or a comprehension is a frame on this line too)
+            line = inspect.currentframe().f_lineno + 1
+            lib.partial_fit(_reach(0.3, seed=i))
+    got = [w for w in caught if issubclass(w.category, DataWarning)]
     assert len(got) == 1 and got[0].category is UnitsWarning
     msg = str(got[0].message)
     assert "spans 0.3" in msg and "far below" in msg and "workspace=" in msg and "Workspace.from_calibration" in msg
-    assert got[0].filename == __file__  # it points at the caller's line, not the library's
+    assert (got[0].filename, got[0].lineno) == (__file__, line)  # it points at the caller's line, not the library's
     assert lib.n_seen == 3  # a warning, not an error: the library learned
 
 
