@@ -22,6 +22,18 @@ PHASE_GRID = tuple(np.round(np.arange(1, 21) / 20.0, 6))
 PHASE_BAND = 1.5
 
 
+def unshrink(cfg, h):
+    """``S^-1 = I + beta (Phi^T Phi)^-1`` per dimension (h, h): ridge weights to least-squares weights.
+
+    Written from the identity ``(G + beta I)^-1 G`` inverted in closed form, not as the
+    library computes it (a pseudo-inverse of the solved product).
+    """
+    Phi = cfg.basis_human.phi_uniform(cfg.n_samples)
+    G = Phi.T @ Phi
+    N = G.shape[0]
+    return np.kron(np.eye(h // N), np.eye(N) + cfg.ridge * np.linalg.inv(G))
+
+
 def _metric(scale, h, cfg):
     cov = gating_covariance(scale, h, prior_scale=cfg.prior_scale, prior_strength=cfg.prior_strength,
                             shrinkage=cfg.shrinkage, prior_floor=cfg.prior_floor)
@@ -230,10 +242,11 @@ class Reference:
             logp, d2 = _scores(w_h, self._means(), self._support(), metric)
             return self._decide(logp, d2, h, np.ones(K), has_robot, shared_cov)
         Phi_o = cfg.basis_human.phi(np.linspace(0.0, observed_fraction, y.shape[0]))
+        U = unshrink(cfg, h)
         logp, d2, dof = np.empty(K), np.empty(K), np.empty(K)
         for i, c in enumerate(self.items):
-            logp[i], d2[i], dof[i] = prefix_statistics(c.mean[:h], metric[0] * (1.0 + 1.0 / c.support), Phi_o, y,
-                                                       self._noise())
+            logp[i], d2[i], dof[i] = prefix_statistics(U @ c.mean[:h], U @ metric[0] @ U.T * (1.0 + 1.0 / c.support),
+                                                       Phi_o, y, self._noise())
         return self._decide(logp, d2, dof, np.full(K, observed_fraction), has_robot, shared_cov)
 
     def recognize_prefix(self, ys, length, has_robot, shared_cov) -> dict:
@@ -244,13 +257,14 @@ class Reference:
         K = len(self.items)
         logp, d2, dof, phases = np.empty(K), np.empty(K), np.empty(K), np.empty(K)
         m = ys.shape[0]
+        U = unshrink(cfg, h)
         for i, c in enumerate(self.items):
             g = min(max(length / max(c.cluster.path_length, 1e-12), grid[0]), 1.0)
             band = [f for f in grid if g / PHASE_BAND - 1e-12 <= f <= min(g * PHASE_BAND, 1.0) + 1e-12]
             nearest = float(grid[np.abs(grid - g).argmin()])
             if nearest not in band:
                 band = sorted(band + [nearest])
-            stats = [prefix_statistics(c.mean[:h], metric[0] * (1.0 + 1.0 / c.support),
+            stats = [prefix_statistics(U @ c.mean[:h], U @ metric[0] @ U.T * (1.0 + 1.0 / c.support),
                                        cfg.basis_human.phi(np.linspace(0.0, f, m)), ys, self._noise()) for f in band]
             lps = np.array([st[0] for st in stats])
             j = int(np.argmax(lps))

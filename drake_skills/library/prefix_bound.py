@@ -67,7 +67,8 @@ def fit_residual(ys: np.ndarray, phases: np.ndarray, basis: GaussianBasis) -> np
 
 
 def fit_lower_bounds(means_h, inflate, phases, ys, sigma_max: float, basis: GaussianBasis, noise_var: float, *,
-                     n_probes: int = N_PROBES, residual: np.ndarray | None = None) -> np.ndarray:
+                     n_probes: int = N_PROBES, residual: np.ndarray | None = None,
+                     unshrink: np.ndarray | None = None) -> np.ndarray:
     """Lower bounds of the fit statistic ``d2`` of every component at every phase of ``phases``, shape (K, J).
 
     Parameters
@@ -89,6 +90,13 @@ def fit_lower_bounds(means_h, inflate, phases, ys, sigma_max: float, basis: Gaus
         Samples looked at.
     residual : array, shape (J,), optional
         :func:`fit_residual` at ``phases`` (computed if not given).
+    unshrink : array, shape (N, N), optional
+        ``S^-1`` of the recognition's model (each dimension's weights mapped to the ones
+        the samples see: ``mu' = S^-1 mu``, ``Sigma' = S^-1 Sigma S^-T`` per dimension),
+        with ``means_h`` and ``sigma_max`` those of ``mu`` and ``Sigma``. The bound then
+        uses the basis ``Phi S^-1`` at the probes, whose norm is far below
+        ``|Phi| |S^-1|`` (the directions ``S^-1`` stretches are those the basis barely
+        sees), with absolute values in the row and column sums.
 
     Notes
     -----
@@ -117,23 +125,27 @@ def fit_lower_bounds(means_h, inflate, phases, ys, sigma_max: float, basis: Gaus
     z = probes.astype(float)[:, None] * (phases / (m - 1))[None]
     z[probes == m - 1] = phases
     G = _basis_columns(basis, z)                                     # (N, q, J)
+    if unshrink is not None:
+        G = np.einsum("in,iqj->nqj", np.asarray(unshrink, float), G)   # rows of Phi S^-1
     q, J = z.shape
     # the mean trajectories at the probes minus the samples, (K, D q J), one product and one 2-d difference
     r = (means_h.reshape(K * D, N) @ G.reshape(N, q * J)).reshape(K, D * q * J)
     r -= np.broadcast_to(ys[probes].T[:, :, None], (D, q, J)).reshape(-1)
     r = r.reshape(K, D * q, J)
     rr = np.einsum("kij,kij->kj", r, r)                              # (K, J)
-    lam = G.sum(axis=1).max(axis=0) * G.sum(axis=0).max(axis=0)      # (J,)
+    A = np.abs(G) if unshrink is not None else G
+    lam = A.sum(axis=1).max(axis=0) * A.sum(axis=0).max(axis=0)      # (J,)
     # what the directions the pseudo-inverse drops (eigenvalues below PINV_RCOND of the
     # largest, at most m or m N) can add to the residual through the component's mean
     eps = N * PINV_RCOND * m * (1.0 if basis.normalized else N)
-    norm_m = np.sqrt(np.einsum("ki,ki->k", means_h, means_h))
+    mh = means_h if unshrink is None else (means_h.reshape(K, D, N) @ np.asarray(unshrink, float).T).reshape(K, -1)
+    norm_m = np.sqrt(np.einsum("ki,ki->k", mh, mh))   # of the means the samples see
     dropped = 2.0 * np.sqrt(eps) * norm_m * float(np.sqrt(np.sum(ys * ys))) + eps * norm_m ** 2
     return rr / (noise_var + np.outer(inflate, sigma_max * lam)) - (E[None, :] + dropped[:, None]) / noise_var
 
 
 def prefix_candidates(means_h, inflate, phases, allowed, ys, sigma_max: float, basis: GaussianBasis,
-                      noise_var: float, threshold: float) -> np.ndarray:
+                      noise_var: float, threshold: float, unshrink: np.ndarray | None = None) -> np.ndarray:
     """Which components may explain the observed beginning ``ys``: a mask, shape (K,).
 
     ``allowed`` (K, J) says at which of ``phases`` each component will be scored;
@@ -155,6 +167,6 @@ def prefix_candidates(means_h, inflate, phases, allowed, ys, sigma_max: float, b
             break
         cols = np.flatnonzero(allowed[idx].any(axis=0))
         bound = fit_lower_bounds(means_h[idx], inflate[idx], phases[cols], ys, sigma_max, basis, noise_var,
-                                 n_probes=q, residual=E[cols])
+                                 n_probes=q, residual=E[cols], unshrink=unshrink)
         keep[idx] = ((bound <= threshold) & allowed[np.ix_(idx, cols)]).any(axis=1)
     return keep

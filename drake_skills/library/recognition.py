@@ -145,7 +145,8 @@ class RecognitionMixin:
             w_h = ridge_weights(y, cfg.basis_human, cfg.ridge)
             logp, d2 = gating_scores(w_h, comps, metric, self._whitened_means())
             return self._decide(logp, d2, h, np.ones(len(comps)))
-        logp, d2, dof = score_at_phase(y, observed_fraction, comps.means_h, 1.0 + 1.0 / comps.support, metric.chol,
+        pm = self._prefix_model()
+        logp, d2, dof = score_at_phase(y, observed_fraction, pm.means_h, 1.0 + 1.0 / comps.support, pm.chol,
                                        cfg.basis_human, self._noise(), self._prefix_cache(metric))
         return self._decide(logp, d2, dof, np.full(len(comps), observed_fraction))
 
@@ -157,6 +158,7 @@ class RecognitionMixin:
         if not len(comps):
             return self._empty_recognition(h)
         metric = self._metric()
+        pm = self._prefix_model()
         guess = path.length / np.maximum(comps.path_length, 1e-12)
         ys = path.resample(_prefix_samples(cfg.n_samples, float(np.median(np.minimum(guess, 1.0)))))
         inflate = 1.0 + 1.0 / comps.support
@@ -168,10 +170,11 @@ class RecognitionMixin:
             # the quantile at h degrees of freedom is at least the one at D rank(Phi) <= h a
             # beginning is tested at, so the bound never rules out a component the test keeps
             keep = prefix_candidates(comps.means_h, inflate, PHASE_GRID, band, ys, sigma_max,
-                                     cfg.basis_human, noise, chi2_ppf(cfg.novelty_quantile, self.n_human))
+                                     cfg.basis_human, noise, chi2_ppf(cfg.novelty_quantile, self.n_human),
+                                     unshrink=pm.per_dim)
             idx = np.flatnonzero(keep)
         if idx is None or idx.size == len(comps):
-            sc = score_prefix(ys, guess, comps.means_h, inflate, metric.chol, cfg.basis_human, noise,
+            sc = score_prefix(ys, guess, pm.means_h, inflate, pm.chol, cfg.basis_human, noise,
                               self._prefix_cache(metric), band)
             return self._decide(sc.log_likelihoods, sc.mahalanobis_sq, sc.dof, sc.phases)
         # the components ruled out cannot explain the samples: log-likelihood -inf, distance inf
@@ -179,7 +182,7 @@ class RecognitionMixin:
         logp, d2 = np.full(K, -np.inf), np.full(K, np.inf)
         dof, phases = np.full(K, float(self.n_human)), np.clip(guess, 1.0 / cfg.n_samples, 1.0)
         if idx.size:
-            sc = score_prefix(ys, guess[idx], comps.means_h[idx], inflate[idx], metric.chol, cfg.basis_human, noise,
+            sc = score_prefix(ys, guess[idx], pm.means_h[idx], inflate[idx], pm.chol, cfg.basis_human, noise,
                               self._prefix_cache(metric), band[idx])
             logp[idx], d2[idx], dof[idx], phases[idx] = sc.log_likelihoods, sc.mahalanobis_sq, sc.dof, sc.phases
         return self._decide(logp, d2, dof, phases, scored=idx)
@@ -238,12 +241,41 @@ class RecognitionMixin:
         c = self._model(component)
         Phi_o = cfg.basis_human.phi(np.linspace(0.0, f, y.shape[0]))
         h, n = self.n_human, n_steps or cfg.n_samples
-        # Eq. (13), keeping only the robot block of the posterior
-        mean_w, cov_w = condition_on_observations(c.mean, self._expert_cov(c), Phi_o, y, self._noise(),
-                                                  start=h)
+        # Eq. (13), keeping only the robot block of the posterior, with the human block in the
+        # least-squares weights the samples are compared with (see _prefix_model)
+        U = self._prefix_model().unshrink
+        mean = np.concatenate([U @ c.mean[:h], c.mean[h:]])
+        cov = np.array(self._expert_cov(c))
+        cov[:h, :] = U @ cov[:h, :]
+        cov[:, :h] = cov[:, :h] @ U.T
+        mean_w, cov_w = condition_on_observations(mean, cov, Phi_o, y, self._noise(), start=h)
         mean_r = cfg.basis_robot.phi_uniform(n) @ mean_w.reshape(self.dim_robot_, -1).T
         cov_r = trajectory_covariance(cov_w, cfg.basis_robot, self.dim_robot_, n_steps=n)
         return mean_r, cov_r
+
+    def _prefix_model(self) -> "_PrefixModel":
+        """The components' human means and the gating covariance as the samples of a motion see them.
+
+        The library's weights are ridge estimates (Eq. 3): over the ``n_samples`` phases a
+        whole motion is resampled to, ``w = S w_ls`` with ``S = (Phi^T Phi + beta I)^-1
+        Phi^T Phi`` and ``w_ls`` the least-squares weights, so the samples' expected
+        in-span part is ``Phi w_ls = Phi S^-1 w``, not ``Phi w``. Comparing samples with
+        ``Phi mu_k`` counts the ridge's shrinkage as misfit: with the defaults a whole
+        taught motion recognized as a beginning got d^2 53 against a threshold of 47, and
+        0.3 with the shrinkage undone. Prefix recognition, phase estimation and
+        conditioning (Eq. 13) therefore use ``S^-1 mu_k`` and ``S^-1 Sigma S^-T`` (per
+        dimension; ``pinv(S)`` where ``S`` is singular). The gating of whole motions
+        compares weights with weights and needs no such step.
+        """
+        def compute():
+            cfg = self.config
+            Phi = cfg.basis_human.phi_uniform(cfg.n_samples)
+            G = Phi.T @ Phi
+            S = np.linalg.solve(G + cfg.ridge * np.eye(G.shape[0]), G)
+            Sinv = np.linalg.pinv(S)
+            U = np.kron(np.eye(self.dim_human_), Sinv)
+            return _PrefixModel(self._components.means_h @ U.T, U @ self._metric().chol, U, Sinv)
+        return self._cached("prefix_model", compute)
 
     def observation_noise(self) -> float:
         """The variance of an observed human sample prefix recognition and conditioning use (normalized units^2).
@@ -275,9 +307,21 @@ class RecognitionMixin:
         metric = self._metric()
         guess = path.length / max(c.cluster.path_length, 1e-12)
         ys = path.resample(_prefix_samples(cfg.n_samples, min(1.0, guess)))
-        sc = score_prefix(ys, np.array([guess]), c.mean[None, :self.n_human], np.array([1.0 + 1.0 / c.support]),
-                          metric.chol, cfg.basis_human, self._noise(), self._prefix_cache(metric))
+        pm = self._prefix_model()
+        sc = score_prefix(ys, np.array([guess]), (c.mean[:self.n_human] @ pm.unshrink.T)[None],
+                          np.array([1.0 + 1.0 / c.support]), pm.chol, cfg.basis_human, self._noise(),
+                          self._prefix_cache(metric))
         return float(sc.phases[0])
+
+
+@dataclass(frozen=True, eq=False)
+class _PrefixModel:
+    """:meth:`RecognitionMixin._prefix_model`: means (K, h), the covariance's factor (h, h), ``S^-1`` (h, h) and per dimension (N, N)."""
+
+    means_h: np.ndarray
+    chol: np.ndarray
+    unshrink: np.ndarray
+    per_dim: np.ndarray
 
 
 def _prefix_samples(n_samples: int, fraction: float) -> int:

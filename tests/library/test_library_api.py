@@ -362,12 +362,18 @@ def test_young_component_is_not_deleted():
 
 # ------------------------------------------------------------------------------ prediction
 def _conditioned_robot_reference(lib, k, y, f):
-    """Eq. (13) by brute force: the joint Gaussian of [w; vec(y)] conditioned on vec(y)."""
+    """Eq. (13) by brute force: the joint Gaussian of [w; vec(y)] conditioned on vec(y).
+
+    The samples see the least-squares human weights ``S^-1 w_h`` (the ridge undone,
+    ``brute_force.unshrink``), so ``vec(y) = H^T S^-1 w_h + noise``.
+    """
+    from brute_force import unshrink
+
     cfg = lib.config
     c = lib.component(k)
     Phi = cfg.basis_human.phi(np.linspace(0.0, f, y.shape[0]))
     HT = np.zeros((y.size, c.mean.shape[0]))
-    HT[:, :15] = np.kron(np.eye(3), Phi)
+    HT[:, :15] = np.kron(np.eye(3), Phi) @ unshrink(cfg, 15)
     d, m = c.mean.shape[0], y.size
     mean_j = np.r_[c.mean, HT @ c.mean]
     noise = lib.observation_noise()

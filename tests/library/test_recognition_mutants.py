@@ -82,9 +82,13 @@ def _reference_phase(cfg, yn, mean_h, support, path_length, gating_cov, noise):
 
 def _all_reference_phases(lib, yn, path_lengths=None):
     st = lib.state()
-    G, noise, h = lib.shared_covariance("gating"), lib.observation_noise(), lib.n_human
+    from brute_force import unshrink
+
+    h = lib.n_human
+    U = unshrink(lib.config, h)               # the samples see the least-squares weights S^-1 w
+    G, noise = U @ lib.shared_covariance("gating") @ U.T, lib.observation_noise()
     pl = [c.cluster.path_length for c in st.components] if path_lengths is None else path_lengths
-    return [_reference_phase(lib.config, yn, c.cluster.mean[:h], c.cluster.support, p, G, noise)
+    return [_reference_phase(lib.config, yn, U @ c.cluster.mean[:h], c.cluster.support, p, G, noise)
             for c, p in zip(st.components, pl)]
 
 
@@ -127,8 +131,13 @@ def _reference_prediction(lib, yn, cid, f, n_steps):
     c = lib.component(cid)
     m = max(2, int(round(cfg.n_samples * f))) if f < 1 else cfg.n_samples
     y = resample_by_arc_length(yn, m, cfg.resample_tolerance)
-    mu, _ = condition_on_observations(c.mean, c.cov, cfg.basis_human.phi(np.linspace(0, f, m)), y,
-                                      lib.observation_noise(), start=lib.n_human)
+    from brute_force import unshrink
+
+    h = lib.n_human
+    T = np.eye(c.mean.shape[0])
+    T[:h, :h] = unshrink(cfg, h)              # the samples see the least-squares human weights
+    mu, _ = condition_on_observations(T @ c.mean, T @ c.cov @ T.T, cfg.basis_human.phi(np.linspace(0, f, m)), y,
+                                      lib.observation_noise(), start=h)
     return cfg.basis_robot.phi_uniform(n_steps) @ mu.reshape(lib.dim_robot_, -1).T
 
 

@@ -117,12 +117,15 @@ def test_prefix_recognition_uses_the_observation_likelihood_of_each_component(f)
     assert y.shape == (m, 3)
     Phi_o = cfg.basis_human.phi(np.linspace(0.0, f, m))
     h = lib.n_human
-    G = lib.shared_covariance()
+    from brute_force import unshrink
+
+    U = unshrink(cfg, h)                      # the samples see the least-squares weights S^-1 w
+    G = U @ lib.shared_covariance() @ U.T
     noise = lib.observation_noise()
     for k, c in enumerate(lib.components):
         S = G * (1.0 + 1.0 / c.support)
-        ref, _, _ = _direct(c.mean[:h], S, Phi_o, y, noise)
-        ref_d2, ref_dof = _direct_fit_statistic(c.mean[:h], S, Phi_o, y, noise)
+        ref, _, _ = _direct(U @ c.mean[:h], S, Phi_o, y, noise)
+        ref_d2, ref_dof = _direct_fit_statistic(U @ c.mean[:h], S, Phi_o, y, noise)
         assert rec.log_likelihoods[k] == pytest.approx(ref, rel=1e-9)
         assert rec.mahalanobis_sq[k] == pytest.approx(ref_d2, rel=1e-6, abs=1e-8)
         assert rec.dof[k] == pytest.approx(ref_dof, rel=1e-9)
