@@ -271,7 +271,7 @@ class RecognitionMixin:
             cfg = self.config
             Phi = cfg.basis_human.phi_uniform(cfg.n_samples)
             G = Phi.T @ Phi
-            S = np.linalg.solve(G + cfg.ridge * np.eye(G.shape[0]), G)
+            S = np.linalg.pinv(G + cfg.ridge * np.eye(G.shape[0]), hermitian=True) @ G   # ridge 0: G may be singular
             Sinv = np.linalg.pinv(S)
             U = np.kron(np.eye(self.dim_human_), Sinv)
             return _PrefixModel(self._components.means_h @ U.T, U @ self._metric().chol, U, Sinv)
