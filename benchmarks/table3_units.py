@@ -29,6 +29,7 @@ import json
 import sys
 import time
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
@@ -36,7 +37,6 @@ from drake_skills.data.workspace import Workspace
 from drake_skills.evaluation.common import stream_rng
 from drake_skills.evaluation.salad_data import SaladContext, SaladSettings, load_salad_data
 from drake_skills.evaluation.salad_transfer import STREAM_TASKS
-from drake_skills.library.config import LibraryConfig
 from drake_skills.library.incremental import SkillLibrary
 from drake_skills.scenario.salad import TASKS
 
@@ -102,7 +102,7 @@ def main() -> int:
     print(f"max |Pw - S| normalized difference over 50 demos: {dmax:.2e}", file=sys.stderr)
 
     base = s.library
-    floor0 = replace(LibraryConfig(), prior_floor=0.0)
+    floor0 = replace(base, prior_floor=0.0)
     spec = {"P": (lambda p: ctx.workspaces[p], base), "S": (lambda p: ctx.shared, base),
             "Pw": (lambda p: wide[p], base), "Pg": (lambda p: glob[p], base), "Sn": (lambda p: narrow, base)}
     for k in list(spec):
@@ -129,12 +129,15 @@ def main() -> int:
                     lib.partial_fit(demos[j], workspace=wsf(pos[j]))
                 t_h, _ = lib._scale.block_variances(lib.n_human)
                 row[v] = lib.n_components
-                row[v + "_rho2th"] = LibraryConfig().prior_scale ** 2 * t_h
+                row[v + "_rho2th"] = cfg.prior_scale ** 2 * t_h
             rows.append(row)
         el = time.perf_counter() - t0
         print(f"order {order} done, {el:.0f} s", file=sys.stderr, flush=True)
-    json.dump({"variants": variants, "c": c.tolist(), "ext_p": ext_p.tolist(), "ext_s": ext_s.tolist(),
-               "rows": rows, "seconds": time.perf_counter() - t0}, open(a.out, "w"), indent=1)
+    out = Path(a.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with open(out, "w") as f:
+        json.dump({"variants": variants, "c": c.tolist(), "ext_p": ext_p.tolist(), "ext_s": ext_s.tolist(),
+                   "rows": rows, "seconds": time.perf_counter() - t0}, f, indent=1)
     summarize(rows, variants)
     return 0
 

@@ -297,7 +297,13 @@ class SkillLibrary(RecognitionMixin, FileMixin):
         return s / s.sum(), np.stack([c.mean for c in items]), np.stack([self._expert_cov(c) for c in items])
 
     def interaction_promp(self, component_id: int) -> InteractionProMP:
-        """The Interaction ProMP of one component (a copy)."""
+        """The Interaction ProMP of one component (a copy), with the library's moments as they are.
+
+        Its weights are the ridge estimates the library keeps; :meth:`predict_robot` of
+        the library compares a beginning's samples with the least-squares weights instead
+        (the ridge's shrinkage undone, :meth:`_prefix_model`), so the two robot means
+        differ by that shrinkage (about 1 % of the mean on synthetic skills).
+        """
         c = self._model(component_id)
         cfg = self.config
         return InteractionProMP.from_moments(

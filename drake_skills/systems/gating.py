@@ -214,9 +214,15 @@ def recognize_motion(library: SkillLibrary, motion: ObservedMotion, *, whole: bo
 
 
 def _paused(state: GatingDecision, motion: ObservedMotion, rule: DecisionRule) -> bool:
-    """At rest before the time-out while the last re-decision put the committed skill short of ``rule.end_phase``?"""
-    b = state.belief
-    if rule.decision_time is not None or b is None or b.status != "skill" or b.best != state.component:
+    """At rest before the time-out while the last re-decision that named the committed skill put it short of ``rule.end_phase``?
+
+    The last such re-decision, not the last one: one "undecided" during the rest must not
+    turn the rule off.
+    """
+    if rule.decision_time is not None or state.component is None:
+        return False
+    b = next((x for x in reversed(state.beliefs) if x.status == "skill" and x.best == state.component), None)
+    if b is None:
         return False
     elapsed = motion.times[-1] - motion.times[0]
     return elapsed < rule.timeout - 1e-12 and np.isfinite(b.phase) and b.phase < rule.end_phase

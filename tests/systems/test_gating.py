@@ -177,14 +177,23 @@ def test_replayed_motion_is_decided_in_a_simulation(library, demo):
 
 
 class _PhaseScripted:
-    """A library whose prefix answer is skill 7 at a set phase, and whose whole-motion answer is set too."""
+    """A library whose prefix answer is skill 7 at a set phase, and whose whole-motion answer is set too.
+
+    ``undecided_after``: prefix answers from this call on are "undecided" (a rest that blurs the evidence).
+    """
     n_components = 2
 
-    def __init__(self, phase, whole):
-        self.phase, self.whole = phase, whole
+    def __init__(self, phase, whole, undecided_after=None):
+        self.phase, self.whole, self.undecided_after, self.calls = phase, whole, undecided_after, 0
 
     def recognize(self, y, normalized, observed_fraction):
         from drake_skills.library.views import Recognition
+        if observed_fraction != 1.0:
+            self.calls += 1
+            if self.undecided_after is not None and self.calls > self.undecided_after:
+                half = np.array([0.5, 0.5])
+                return Recognition(None, (7, 8), half, np.zeros(2), np.zeros(2), 3, "undecided",
+                                   np.full(2, self.phase), half)
         k = self.whole if observed_fraction == 1.0 else 7
         post = np.array([1.0, 0.0]) if k == 7 else np.array([0.0, 1.0])
         phases = np.full(2, 1.0 if observed_fraction == 1.0 else self.phase)
@@ -230,3 +239,11 @@ def test_end_phase_must_be_a_fraction():
         with pytest.raises(ValueError, match=r"DecisionRule.end_phase must be in \[0, 1\]"):
             DecisionRule(end_phase=bad)
     assert DecisionRule(end_phase=0.0).end_phase == 0.0   # 0: never doubt a rest
+
+
+def test_an_undecided_re_decision_during_the_rest_does_not_turn_the_rest_rule_off():
+    """The phase that counts is that of the last re-decision naming the committed skill (found in review)."""
+    rule = DecisionRule(end_phase=0.8)
+    state = _pause_then_rest(_PhaseScripted(0.45, 8, undecided_after=12), rule)
+    assert state.commits == (7,) and any(b.status == "undecided" for b in state.beliefs)
+    assert state.final and state.status == "undecided" and state.component is None
