@@ -55,8 +55,8 @@ from drake_skills.data.demonstration import Demonstration
 from drake_skills.scenario import salad_styles
 from drake_skills.scenario.salad_subject import (_STREAM_CALIBRATION, _STREAM_DEMO, _STREAM_SUBJECT,
                                                  _TASK_DURATION, RATE_HZ, SLOPPY_SUBJECTS, TABLE_TOP_Z, TASKS,
-                                                 ReachPlan, Subject, SubjectData, _bezier, _calibration_z, _rng,
-                                                 _scene, _unit, min_jerk)
+                                                 ReachPlan, Subject, SubjectData, _bezier, _calibration_z,
+                                                 _check_subject, _draw_body, _rng, _scene, _unit, min_jerk)
 from drake_skills.sim.config import SUBJECT_MODELS
 from drake_skills.sim.models import IIWA7_JOINT_LIMITS, IIWA7_VELOCITY_LIMITS
 from drake_skills.sim.salad_robot import salad_robot
@@ -90,15 +90,10 @@ def make_subject(index: int, seed: int = 0, model: str = DEFAULT_SUBJECT_MODEL) 
     """
     if _check_model(model) == "styled":
         return salad_styles.make_styled_subject(index, seed)
-    if int(index) < 1:
-        raise ValueError(f"subject index is 1-based, got {index!r}")
-    if int(seed) < 0:
-        raise ValueError(f"seed must be non-negative, got {seed!r}")
+    _check_subject(index, seed)
     cfg = _scene().person
     rng = _rng(seed, index, _STREAM_SUBJECT)
-    arm = float(rng.uniform(0.54, 0.68))
-    lean = float(cfg.lean * rng.uniform(0.85, 1.15))
-    scale = arm / cfg.arm_length * float(rng.uniform(0.92, 1.08))
+    arm, lean, scale = _draw_body(cfg, rng)
     seat = np.array([rng.normal(0, 0.03), rng.normal(0, 0.03), rng.normal(0, 0.03)])
     shoulder = np.asarray(cfg.shoulder, float) + seat
     # the wrist rests on the table edge: it moves with the seat in x-y, not in z

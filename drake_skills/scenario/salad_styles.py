@@ -60,7 +60,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from drake_skills.scenario.salad_subject import (_STREAM_SUBJECT, _TASK_DURATION, SLOPPY_SUBJECTS, TABLE_TOP_Z,
-                                                 TASKS, Subject, _rng, _scene, _skewed_profile, _unit)
+                                                 TASKS, Subject, _check_subject, _draw_body, _rng, _scene,
+                                                 _skewed_profile, _unit)
 
 #: 1-based subjects who work (and are tracked) with the left hand.
 LEFT_HANDED_SUBJECTS = (6,)
@@ -142,15 +143,10 @@ def make_styled_subject(index: int, seed: int = 0) -> Subject:
     like the classic subject's; position, posture and style come from the
     distributions of the module docstring.
     """
-    if int(index) < 1:
-        raise ValueError(f"subject index is 1-based, got {index!r}")
-    if int(seed) < 0:
-        raise ValueError(f"seed must be non-negative, got {seed!r}")
+    _check_subject(index, seed)
     cfg = _scene().person
     body = _rng(seed, index, _STREAM_SUBJECT)
-    arm = float(body.uniform(0.54, 0.68))
-    lean = float(cfg.lean * body.uniform(0.85, 1.15))
-    scale = arm / cfg.arm_length * float(body.uniform(0.92, 1.08))
+    arm, lean, scale = _draw_body(cfg, body)
     rng = _rng(seed, index, STREAM_STYLE)
     left = _flag(index, LEFT_HANDED_SUBJECTS, 0.1, rng)
     camera = _flag(index, CAMERA_SUBJECTS, 0.2, rng)

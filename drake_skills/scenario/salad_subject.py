@@ -163,6 +163,22 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=1)
+def _check_subject(index: int, seed: int) -> None:
+    """Raise ValueError unless ``index`` is 1-based and ``seed`` non-negative."""
+    if int(index) < 1:
+        raise ValueError(f"subject index is 1-based, got {index!r}")
+    if int(seed) < 0:
+        raise ValueError(f"seed must be non-negative, got {seed!r}")
+
+
+def _draw_body(cfg, rng: np.random.Generator) -> tuple[float, float, float]:
+    """Arm length (m), torso lean and reach scale of a subject, drawn from ``rng`` (three draws, in this order)."""
+    arm = float(rng.uniform(0.54, 0.68))
+    lean = float(cfg.lean * rng.uniform(0.85, 1.15))
+    scale = arm / cfg.arm_length * float(rng.uniform(0.92, 1.08))
+    return arm, lean, scale
+
+
 def _scene():
     return load_scene_config()
 
