@@ -21,6 +21,7 @@ rule out. The answers are those of scoring every component one by one
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -31,7 +32,7 @@ from drake_skills.library.prefix import PHASE_GRID, phase_band, score_at_phase, 
 from drake_skills.library.prefix_bound import prefix_candidates
 from drake_skills.library.scale import observation_noise
 from drake_skills.library.views import Recognition, UnknownSkillError
-from drake_skills.promp.basis import ridge_weights, trajectory_covariance
+from drake_skills.promp.basis import GaussianBasis, ridge_weights, trajectory_covariance
 from drake_skills.promp.interaction import condition_on_observations
 
 __all__ = ["PRUNE_MIN_COMPONENTS", "RecognitionMixin"]
@@ -269,10 +270,7 @@ class RecognitionMixin:
         """
         def compute():
             cfg = self.config
-            Phi = cfg.basis_human.phi_uniform(cfg.n_samples)
-            G = Phi.T @ Phi
-            S = np.linalg.pinv(G + cfg.ridge * np.eye(G.shape[0]), hermitian=True) @ G   # ridge 0: G may be singular
-            Sinv = np.linalg.pinv(S)
+            Sinv = _unshrink(cfg.basis_human, int(cfg.n_samples), float(cfg.ridge))
             U = np.kron(np.eye(self.dim_human_), Sinv)
             return _PrefixModel(self._components.means_h @ U.T, U @ self._metric().chol, U, Sinv)
         return self._cached("prefix_model", compute)
@@ -308,10 +306,21 @@ class RecognitionMixin:
         guess = path.length / max(c.cluster.path_length, 1e-12)
         ys = path.resample(_prefix_samples(cfg.n_samples, min(1.0, guess)))
         pm = self._prefix_model()
-        sc = score_prefix(ys, np.array([guess]), (c.mean[:self.n_human] @ pm.unshrink.T)[None],
+        sc = score_prefix(ys, np.array([guess]), pm.means_h[[self._components.index(c.id)]],
                           np.array([1.0 + 1.0 / c.support]), pm.chol, cfg.basis_human, self._noise(),
                           self._prefix_cache(metric))
         return float(sc.phases[0])
+
+
+@lru_cache(maxsize=16)
+def _unshrink(basis: GaussianBasis, n_samples: int, ridge: float) -> np.ndarray:
+    """``S^-1`` (N, N) of :meth:`RecognitionMixin._prefix_model`: a function of the settings alone (cached, read-only)."""
+    Phi = basis.phi_uniform(n_samples)
+    G = Phi.T @ Phi
+    S = np.linalg.pinv(G + ridge * np.eye(G.shape[0]), hermitian=True) @ G   # ridge 0: G may be singular
+    Sinv = np.linalg.pinv(S)
+    Sinv.setflags(write=False)
+    return Sinv
 
 
 @dataclass(frozen=True, eq=False)
