@@ -162,3 +162,14 @@ def test_library_with_no_components_answers_unknown():
     with pytest.raises(UnknownSkillError):
         lib.predict_robot(human)
     assert lib.partial_fit(synthetic_demo(0, np.random.default_rng(1), T=30)).created == (2,)
+
+
+def test_responsibilities_read_like_the_dict_they_stand_for():
+    """A ``Responsibilities`` is a read-only mapping id -> value that prints as the dict it stands for."""
+    from drake_skills.library.views import Responsibilities
+
+    r = Responsibilities(np.array([4, 9]), np.array([0.25, 0.75]))
+    assert dict(r) == {4: 0.25, 9: 0.75} and len(r) == 2 and r[9] == 0.75 and list(r) == [4, 9]
+    assert repr(r) == "{4: 0.25, 9: 0.75}"
+    with pytest.raises(KeyError):
+        r[5]

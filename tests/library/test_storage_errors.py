@@ -532,3 +532,27 @@ def test_an_entry_declaring_an_overflowing_shape_is_rejected(good):
     with pytest.raises(ValueError, match=re.escape(f"entry 'means' declares ({2 ** 33}, {2 ** 33}) float64 "
                                                    f"({2 ** 69} bytes) but the file holds")):
         SkillLibrary.load(p)
+
+
+def test_a_dense_file_warns_with_the_whole_message_naming_the_file(tmp_path, caplog):
+    """The user sees the full warning: which file, why the scale is estimated, what is missing."""
+    rng = np.random.default_rng(6)
+    p = _dense(tmp_path / "old.npz", [(0, 1, 2.0, 1.0, rng.standard_normal(15), _spd(rng, 15, 0.1))], n_seen=2)
+    with caplog.at_level("WARNING", logger="drake_skills.library.storage"):
+        SkillLibrary.load(p)
+    assert caplog.messages == [
+        f"library file '{p}' has schema version < 3 (fixed Sigma_init scale): its shared scale is estimated from "
+        "the stored components, and phase estimates need new demonstrations (no path lengths stored)"]
+
+
+def test_a_dense_file_counts_its_demonstrations_as_stored_and_an_inconsistent_count_names_the_file(tmp_path):
+    """The scale counts ``n_seen`` demonstrations (one demonstration is a valid library); a file whose count
+    disagrees with its components (none seen, one component) is an error naming the file and the counts."""
+    rng = np.random.default_rng(7)
+    comp = (0, 1, 1.0, 1.0, rng.standard_normal(15), _spd(rng, 15, 0.1))
+    st = storage.load_state(_dense(tmp_path / "one.npz", [comp], n_seen=1))
+    assert st.n_seen == 1 and st.scale.n == 1 and len(st.components) == 1
+    p = _dense(tmp_path / "none_seen.npz", [comp], n_seen=0)
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"library file '{p}' is inconsistent: the shared scale counted 1 demonstrations, the library has seen 0")):
+        storage.load_state(p)
