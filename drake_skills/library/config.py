@@ -7,7 +7,7 @@ loader knows (numbers, strings, lists, ``Optional`` of a plain dataclass).
 """
 # No "from __future__ import annotations": yaml_load_typed reads the real field types.
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from typing import Optional
 
 import numpy as np
@@ -175,6 +175,21 @@ class LibraryConfig:
         if self.novelty_test not in NOVELTY_TESTS:
             raise ValueError(f"LibraryConfig.novelty_test must be one of {NOVELTY_TESTS}, got {self.novelty_test!r}")
         self.workspace = _as_workspace(self.workspace)
+
+    def __setattr__(self, name, value):
+        if self.__dict__.get("_sealed"):
+            raise AttributeError(
+                f"LibraryConfig.{name} of a SkillLibrary cannot change: the library's tests and caches were built "
+                f"from it. Make a new library, SkillLibrary(dataclasses.replace(lib.config, {name}=...)), and teach "
+                f"it again (the demonstrations' weights depend on most settings)")
+        object.__setattr__(self, name, value)
+
+    def sealed(self) -> "LibraryConfig":
+        """A copy that refuses to change (what a :class:`SkillLibrary` keeps; ``dataclasses.replace`` of it is
+        an ordinary, changeable config)."""
+        c = replace(self)
+        object.__setattr__(c, "_sealed", True)
+        return c
 
     def dict(self) -> dict:
         """The fields as JSON-ready values (the workspace as ``{"lower", "upper", "scale"}``)."""

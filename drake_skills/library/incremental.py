@@ -102,7 +102,14 @@ class SkillLibrary(RecognitionMixin, FileMixin):
     ----------
     config : LibraryConfig, optional
         Hyperparameters; the defaults serve letters, the salad scenario and real
-        human-robot interactions alike (nothing in them is a length).
+        human-robot interactions alike (nothing in them is a length). The library
+        keeps a copy that cannot change (:meth:`LibraryConfig.sealed`): later changes
+        to ``config`` do not reach it, and ``lib.config.ridge = ...`` raises.
+
+    Threads: queries (``recognize``, ``estimate_phase``, ``predict_robot``) may run from
+    several threads at once. Learning (``fit``, ``partial_fit``) replaces the
+    components and the scale one after the other, so it must not overlap a query on the
+    same library: hold a lock, or query a copy (``SkillLibrary.from_state(lib.state())``).
 
     Examples
     --------
@@ -114,9 +121,11 @@ class SkillLibrary(RecognitionMixin, FileMixin):
     """
 
     def __init__(self, config: LibraryConfig | None = None):
-        self.config = config if config is not None else LibraryConfig()
-        if not isinstance(self.config, LibraryConfig):
-            raise ValueError(f"config must be a LibraryConfig, got {type(self.config).__name__}")
+        config = config if config is not None else LibraryConfig()
+        if not isinstance(config, LibraryConfig):
+            raise ValueError(f"config must be a LibraryConfig, got {type(config).__name__}")
+        # a copy that cannot change: the novelty rule and the caches below are built from it
+        self._config = config if config.__dict__.get("_sealed") else config.sealed()
         self._rule = novelty_rule(self.config)
         self._origin: tuple[str, int] | None = None  # (file, generation) last loaded from or saved to
         self._reset()
@@ -134,6 +143,11 @@ class SkillLibrary(RecognitionMixin, FileMixin):
         self._paths: tuple = ()  # the last PATH_MEMO motions normalized: ((key, _Path), ...)
         self.dim_human_: int | None = None
         self.dim_robot_: int | None = None
+
+    @property
+    def config(self) -> LibraryConfig:
+        """The library's settings, fixed when it was made (assigning a field raises ``AttributeError``)."""
+        return self._config
 
     # ------------------------------------------------------------------ state
     def state(self) -> LibraryState:

@@ -96,7 +96,7 @@ def test_library_takes_only_a_library_config():
     _raises("config must be a LibraryConfig, got dict", SkillLibrary, {"ridge": 0.1})
     assert SkillLibrary().config == LibraryConfig()
     cfg = LibraryConfig(ridge=0.1)
-    assert SkillLibrary(cfg).config is cfg
+    assert SkillLibrary(cfg).config == cfg and SkillLibrary(cfg).config is not cfg  # a sealed copy
 
 
 # ------------------------------------------------------------------------------ views
