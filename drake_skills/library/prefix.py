@@ -29,6 +29,7 @@ averaged over the phases of its band (the phase is marginalized, not maximized).
 """
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -120,7 +121,7 @@ def score_phases(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarray
     if cache is None:
         lam, Q = _whitened_gram(PtP, chol, D)
     else:
-        stacked = cache.setdefault("stacked", {})
+        stacked = cache.setdefault("stacked", OrderedDict())
         hit = stacked.get((phases, int(m)))
         if hit is None:  # one entry per (phase, m): the phase sets asked for vary, the phases themselves recur
             missing = [j for j, f in enumerate(phases) if (f, int(m)) not in cache]
@@ -130,7 +131,10 @@ def score_phases(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarray
                     cache[(phases[j], int(m))] = (lam_m[i], Q_m[i])
             hit = (np.stack([cache[(f, int(m))][0] for f in phases]), np.stack([cache[(f, int(m))][1] for f in phases]))
             if len(stacked) >= _STACKED_ENTRIES:
-                stacked.pop(next(iter(stacked)))
+                try:  # popitem is one step under the GIL; iterating the dict raced with other threads' queries
+                    stacked.popitem(last=False)
+                except KeyError:  # another thread emptied it
+                    pass
             stacked[(phases, int(m))] = hit
         lam, Q = hit
     J, _, N = Phi.shape

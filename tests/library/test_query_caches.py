@@ -6,6 +6,9 @@ last few normalized motions (``PATH_MEMO``) and prefix recognition keeps whole p
 sets' eigendecompositions (``prefix._STACKED_ENTRIES``). Each cached answer must be
 the one computed from scratch, and a changed input must never meet a stale entry.
 """
+import sys
+import threading
+
 import numpy as np
 import pytest
 
@@ -108,3 +111,37 @@ def test_a_remembered_motion_does_not_share_the_callers_array():
     again = lib._normalized(kept, None, True)                       # the old samples, another array
     assert again is first
     np.testing.assert_array_equal(again.y, kept)
+
+
+def test_queries_from_several_threads_give_the_serial_answers_while_the_caches_evict(monkeypatch):
+    """Four threads recognize beginnings of six motions at once, with a stacked cache of two entries (so that
+    every query evicts) and a thread switch every microsecond: no error, every posterior the serial one. (The
+    eviction once iterated the dict another thread was changing: "dictionary changed size during iteration".)"""
+    monkeypatch.setattr(prefix, "_STACKED_ENTRIES", 2)
+    lib, _ = _lib()
+    probes = [synthetic_demo(t % 2, np.random.default_rng(10 + t)).human for t in range(6)]
+    cuts = [int(f * len(probes[0])) for f in np.linspace(0.2, 0.9, 15)]
+    serial = {(i, c): lib.recognize(p[:c]).posterior.copy() for i, p in enumerate(probes) for c in cuts}
+    errors = []
+
+    def work(seed):
+        r = np.random.default_rng(seed)
+        try:
+            for _ in range(300):
+                i, c = int(r.integers(len(probes))), cuts[int(r.integers(len(cuts)))]
+                if not np.allclose(lib.recognize(probes[i][:c]).posterior, serial[(i, c)], rtol=1e-9, atol=1e-12):
+                    errors.append(f"probe {i} cut {c}: another posterior")
+        except Exception as exc:  # noqa: BLE001 - reported below
+            errors.append(repr(exc))
+
+    old = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)
+    try:
+        threads = [threading.Thread(target=work, args=(s,)) for s in range(4)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+    finally:
+        sys.setswitchinterval(old)
+    assert errors == []
