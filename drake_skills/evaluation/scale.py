@@ -41,6 +41,8 @@ STREAM_LASA, STREAM_SYNTHETIC = 41, 42
 #: The orders of the synthetic streams.
 ORDERS = ("random", "row")
 OUTCOMES = ("correct", "wrong", "undecided", "unknown")
+#: What made or removed components while a synthetic library learned (columns of the synthetic table).
+EVENTS = ("novel firsts", "novel repeats", "splits", "merges", "deletions")
 
 
 @dataclass
@@ -154,6 +156,10 @@ class SyntheticTrial:
     ms_update: float
     ms_recognize: float
     ms_prefix: float
+    #: Where the components came from: first demonstrations of a skill that made a component, later
+    #: ones that did (novel repeats), splits and merges (components = first + repeats + splits - merges
+    #: - deletions).
+    events: dict = field(default_factory=dict)
 
 
 def synthetic_trial(settings: ScaleSettings, item: tuple[int, str]) -> SyntheticTrial:
@@ -167,11 +173,18 @@ def synthetic_trial(settings: ScaleSettings, item: tuple[int, str]) -> Synthetic
         labels = rng.permutation(labels)
     lab = LabeledLibrary(s.library)
     times = []
+    seen = np.zeros(K, bool)
+    events = dict.fromkeys(EVENTS, 0)
     for k in labels:
         demo = bank.demo(int(k), rng, scatter=s.scatter)
         t0 = time.process_time()
-        lab.teach(demo)
+        update = lab.teach(demo)
         times.append(time.process_time() - t0)
+        events["novel repeats" if seen[k] else "novel firsts"] += len(update.created)
+        events["splits"] += len(update.split)
+        events["merges"] += len(update.merged)
+        events["deletions"] += len(update.deleted)
+        seen[k] = True
     lib = lab.library
     outcomes, rec_times = [], []
     for k in range(K):
@@ -190,7 +203,7 @@ def synthetic_trial(settings: ScaleSettings, item: tuple[int, str]) -> Synthetic
     tail = times[-max(1, len(times) // 3):]
     return SyntheticTrial(K, order, lib.n_components, _count(outcomes), 1e3 * float(np.median(tail)),
                           1e3 * float(np.median(rec_times)),
-                          1e3 * float(np.median(prefix_times)) if prefix_times else float("nan"))
+                          1e3 * float(np.median(prefix_times)) if prefix_times else float("nan"), events)
 
 
 def _fractions(counts) -> list[float]:
@@ -287,19 +300,21 @@ def evaluate_scale(settings: ScaleSettings | None = None, *, progress: bool = Tr
                            "components_per_order": comps.tolist()}
     items = [(K, order) for K in s.sizes for order in s.orders]
     synth = run_trials(synthetic_trial, items, s, desc="scale: synthetic libraries", progress=progress)
-    rows = [[t.n_skills, t.order, t.components, *_fractions(t.counts), t.ms_update, t.ms_recognize, t.ms_prefix]
-            for t in synth]
+    rows = [[t.n_skills, t.order, t.components, *_fractions(t.counts), t.ms_update, t.ms_recognize, t.ms_prefix,
+             *(t.events[e] for e in EVENTS)] for t in synth]
     rep.tables["synthetic"] = Table(
         ["skills", "order", "components"] + list(OUTCOMES) + ["CPU ms per update", "CPU ms per recognition",
-                                                               "CPU ms per prefix recognition"], rows,
+                                                               "CPU ms per prefix recognition"] + list(EVENTS), rows,
         caption=(f"Synthetic 3-D wrist skills with 7-joint robots (paths >= {s.separation} apart, scatter "
                  f"{s.scatter}), {s.demos_per_skill} demonstrations each, interleaved (random) or in a row; one new "
                  f"demonstration per skill recognized as a whole motion. Median CPU ms of partial_fit over the "
                  f"last third of the stream, of whole-motion recognition, and of {s.prefix_probes} beginnings "
-                 f"(30-90 %) recognized without a fraction (one process, one BLAS thread)."))
+                 f"(30-90 %) recognized without a fraction (one process, one BLAS thread). Where the components "
+                 f"came from: a skill's first demonstration novel, a later one novel, splits, merges, deletions."))
     summary["synthetic"] = [{"skills": t.n_skills, "order": t.order, "components": t.components,
                              **dict(zip(OUTCOMES, _fractions(t.counts))), "ms_update": t.ms_update,
-                             "ms_recognize": t.ms_recognize, "ms_prefix": t.ms_prefix} for t in synth]
+                             "ms_recognize": t.ms_recognize, "ms_prefix": t.ms_prefix,
+                             "events": dict(t.events)} for t in synth]
     rep.summary = summary
     if figures:
         rep.figures["scale"] = _fig(synth, lasa_components, len(shapes))

@@ -5,7 +5,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from drake_skills.evaluation.scale import OUTCOMES, ScaleSettings, evaluate_scale
+from drake_skills.evaluation.scale import EVENTS, OUTCOMES, ScaleSettings, evaluate_scale
 
 
 @pytest.fixture(scope="module")
@@ -22,6 +22,11 @@ def test_synthetic_libraries_find_one_component_per_skill_and_recognize_new_demo
         assert sum(parts) == pytest.approx(1.0, abs=1e-12)
         assert row["correct"] >= 0.95 and row["wrong"] == 0.0  # skills 1.5 apart, scatter 0.03
         assert row["ms_update"] > 0 and row["ms_recognize"] > 0 and row["ms_prefix"] > 0
+        ev = row["events"]  # the components' account balances
+        assert set(ev) == set(EVENTS) and ev["novel firsts"] <= row["skills"]
+        assert ev["novel firsts"] + ev["novel repeats"] + ev["splits"] - ev["merges"] - ev["deletions"] \
+            == row["components"], ev
+    assert t.column("novel firsts") == [r["events"]["novel firsts"] for r in report.summary["synthetic"]]
 
 
 def test_lasa_in_one_library_is_scored_on_the_held_out_demonstrations(report):
