@@ -33,7 +33,6 @@ installed). Ray is an optional dependency (``pip install 'drake-skills[tune]'``,
 from __future__ import annotations
 
 import contextlib
-import copy
 import logging
 import os
 from dataclasses import dataclass, replace
@@ -105,7 +104,7 @@ def write_config_yaml(config: LibraryConfig, path) -> Path:
 
     from drake_skills._io import atomic_write
 
-    c = copy.copy(config)
+    c = replace(config)  # a changeable copy (a library's config is sealed)
     if c.workspace is not None:
         c.workspace = WorkspaceBounds(c.workspace.lower.tolist(), c.workspace.upper.tolist(), c.workspace.scale)
     text = "# LibraryConfig chosen by drake-skills tune\n" + yaml_dump_typed(c)

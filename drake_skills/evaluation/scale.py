@@ -162,6 +162,17 @@ class SyntheticTrial:
     events: dict = field(default_factory=dict)
 
 
+def tally_events(events: dict, update, *, repeat: bool) -> dict:
+    """Add what one ``partial_fit`` (an :class:`~drake_skills.library.views.Update`) did to ``events`` (keys
+    :data:`EVENTS`): components it created (a skill's first demonstration or a later one), splits, merges and
+    deletions."""
+    events["novel repeats" if repeat else "novel firsts"] += len(update.created)
+    events["splits"] += len(update.split)
+    events["merges"] += len(update.merged)
+    events["deletions"] += len(update.deleted)
+    return events
+
+
 def synthetic_trial(settings: ScaleSettings, item: tuple[int, str]) -> SyntheticTrial:
     """Teach ``demos_per_skill`` demonstrations of ``K`` synthetic skills in ``order``, then recognize and time."""
     K, order = item
@@ -180,10 +191,7 @@ def synthetic_trial(settings: ScaleSettings, item: tuple[int, str]) -> Synthetic
         t0 = time.process_time()
         update = lab.teach(demo)
         times.append(time.process_time() - t0)
-        events["novel repeats" if seen[k] else "novel firsts"] += len(update.created)
-        events["splits"] += len(update.split)
-        events["merges"] += len(update.merged)
-        events["deletions"] += len(update.deleted)
+        tally_events(events, update, repeat=bool(seen[k]))
         seen[k] = True
     lib = lab.library
     outcomes, rec_times = [], []

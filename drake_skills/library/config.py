@@ -176,17 +176,27 @@ class LibraryConfig:
             raise ValueError(f"LibraryConfig.novelty_test must be one of {NOVELTY_TESTS}, got {self.novelty_test!r}")
         self.workspace = _as_workspace(self.workspace)
 
-    def __setattr__(self, name, value):
+    def _refuse_if_sealed(self, name: str):
         if self.__dict__.get("_sealed"):
             raise AttributeError(
                 f"LibraryConfig.{name} of a SkillLibrary cannot change: the library's tests and caches were built "
                 f"from it. Make a new library, SkillLibrary(dataclasses.replace(lib.config, {name}=...)), and teach "
                 f"it again (the demonstrations' weights depend on most settings)")
+
+    def __setattr__(self, name, value):
+        self._refuse_if_sealed(name)
         object.__setattr__(self, name, value)
 
+    def __delattr__(self, name):
+        self._refuse_if_sealed(name)
+        object.__delattr__(self, name)
+
     def sealed(self) -> "LibraryConfig":
-        """A copy that refuses to change (what a :class:`SkillLibrary` keeps; ``dataclasses.replace`` of it is
-        an ordinary, changeable config)."""
+        """A config that refuses to change: itself if it is sealed already, else a sealed copy (what a
+        :class:`SkillLibrary` keeps). Copies (``copy``, pickle) stay sealed; ``dataclasses.replace`` of it is an
+        ordinary, changeable config."""
+        if self.__dict__.get("_sealed"):
+            return self
         c = replace(self)
         object.__setattr__(c, "_sealed", True)
         return c

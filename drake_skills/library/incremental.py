@@ -55,6 +55,7 @@ from __future__ import annotations
 
 import logging
 import warnings
+from collections import OrderedDict
 from typing import Sequence
 
 import numpy as np
@@ -125,7 +126,7 @@ class SkillLibrary(RecognitionMixin, FileMixin):
         if not isinstance(config, LibraryConfig):
             raise ValueError(f"config must be a LibraryConfig, got {type(config).__name__}")
         # a copy that cannot change: the novelty rule and the caches below are built from it
-        self._config = config if config.__dict__.get("_sealed") else config.sealed()
+        self._config = config.sealed()
         self._rule = novelty_rule(self.config)
         self._origin: tuple[str, int] | None = None  # (file, generation) last loaded from or saved to
         self._reset()
@@ -258,19 +259,25 @@ class SkillLibrary(RecognitionMixin, FileMixin):
 
     def _expert_cov(self, c: ComponentModel) -> np.ndarray:
         """``(kappa Sigma + S_k) / (kappa + s_k - 1)``, kept until the library learns (a d x d product each)."""
-        if getattr(self, "_expert_cache", (None,))[0] is not self._scale:
-            self._expert_cache = (self._scale, {})
-        cache = self._expert_cache[1]
+        held = getattr(self, "_expert_cache", (None,))
+        if held[0] is not self._scale:
+            held = self._expert_cache = (self._scale, OrderedDict())
+        cache = held[1]
         key = id(c.cluster)
-        if key not in cache or cache[key][0] is not c.cluster:
-            k = self.config.expert_prior
-            C = (k * self._shared_cov() + c.cluster.scatter) / (k + c.support - 1.0)
-            C = 0.5 * (C + C.T)
-            C.setflags(write=False)
-            if len(cache) >= 64:  # a few d x d matrices, not one per component of a large library
-                cache.pop(next(iter(cache)))
-            cache[key] = (c.cluster, C)
-        return cache[key][1]
+        hit = cache.get(key)  # one read: another thread may evict between two
+        if hit is not None and hit[0] is c.cluster:
+            return hit[1]
+        k = self.config.expert_prior
+        C = (k * self._shared_cov() + c.cluster.scatter) / (k + c.support - 1.0)
+        C = 0.5 * (C + C.T)
+        C.setflags(write=False)
+        if len(cache) >= 64:  # a few d x d matrices, not one per component of a large library
+            try:  # one step under the GIL (iterating the dict would race with other threads' queries)
+                cache.popitem(last=False)
+            except KeyError:  # another thread emptied it
+                pass
+        cache[key] = (c.cluster, C)
+        return C
 
     def _cached(self, name: str, compute):
         """``compute()`` once per version of the library (components and scale are immutable, so identity is version)."""

@@ -15,7 +15,7 @@ document of ``LibraryConfig`` fields alone (the rest keeps its defaults).
 """
 # No "from __future__ import annotations": yaml_load_typed reads the real field types.
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Optional, Union
 
@@ -153,13 +153,16 @@ def load_config(path: Union[str, Path, None] = None, *, defaults: Optional[SimCo
             raise ValueError(f"the document is a {type(root).__name__}, not a mapping of fields")
         library_fields = {f.name for f in fields(LibraryConfig)}
         if root and set(root) <= library_fields:
-            library = yaml_load_typed(schema=LibraryConfig, filename=str(path), defaults=defaults.library)
+            # the loader assigns fields of (a copy of) its defaults: start from changeable copies, as a
+            # library's config is sealed
+            library = yaml_load_typed(schema=LibraryConfig, filename=str(path), defaults=replace(defaults.library))
             return validated(SimConfig(**{f.name: getattr(defaults, f.name) for f in fields(SimConfig)
                                           if f.name != "library"}, library=library))
         misplaced = sorted(set(root) & library_fields)
         if misplaced:
             raise ValueError(f"LibraryConfig fields {misplaced} must go under 'library:' next to SimConfig fields")
-        return validated(yaml_load_typed(schema=SimConfig, filename=str(path), defaults=defaults))
+        return validated(yaml_load_typed(schema=SimConfig, filename=str(path),
+                                         defaults=replace(defaults, library=replace(defaults.library))))
     except (RuntimeError, ValueError, TypeError) as exc:
         raise ValueError(f"{where}: {exc}") from None
 

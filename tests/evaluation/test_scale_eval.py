@@ -5,7 +5,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from drake_skills.evaluation.scale import EVENTS, OUTCOMES, ScaleSettings, evaluate_scale
+from drake_skills.evaluation.scale import EVENTS, OUTCOMES, ScaleSettings, evaluate_scale, tally_events
+from drake_skills.library.views import Update
 
 
 @pytest.fixture(scope="module")
@@ -27,6 +28,15 @@ def test_synthetic_libraries_find_one_component_per_skill_and_recognize_new_demo
         assert ev["novel firsts"] + ev["novel repeats"] + ev["splits"] - ev["merges"] - ev["deletions"] \
             == row["components"], ev
     assert t.column("novel firsts") == [r["events"]["novel firsts"] for r in report.summary["synthetic"]]
+
+
+def test_the_event_tally_counts_each_kind_of_change_of_a_stream():
+    ev = dict.fromkeys(EVENTS, 0)
+    tally_events(ev, Update(0, None, created=(0,)), repeat=False)
+    tally_events(ev, Update(1, 0, updated=(0,)), repeat=True)
+    tally_events(ev, Update(2, None, created=(1,), merged=((0, 1),)), repeat=True)
+    tally_events(ev, Update(3, 0, updated=(0,), split=((0, 2), (3, 4)), deleted=(5,)), repeat=True)
+    assert ev == {"novel firsts": 1, "novel repeats": 1, "splits": 2, "merges": 1, "deletions": 1}
 
 
 def test_lasa_in_one_library_is_scored_on_the_held_out_demonstrations(report):

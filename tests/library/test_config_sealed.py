@@ -49,3 +49,30 @@ def test_a_loaded_or_copied_library_keeps_a_sealed_config(tmp_path):
         assert other.config == lib.config
         with pytest.raises(AttributeError, match="cannot change"):
             other.config.ridge = 1.0
+
+
+def test_a_sealed_config_refuses_deletion_and_seals_once():
+    lib = SkillLibrary()
+    with pytest.raises(AttributeError, match=r"^LibraryConfig\.ridge of a SkillLibrary cannot change"):
+        del lib.config.ridge
+    assert lib.config.ridge == LibraryConfig().ridge
+    assert lib.config.sealed() is lib.config and SkillLibrary(lib.config).config is lib.config
+
+
+def test_a_librarys_config_writes_as_yaml_and_serves_as_the_defaults_of_a_config_file(tmp_path):
+    """The paths that copy a config and then assign its fields (the YAML writer, Drake's YAML loader with
+    defaults) start from changeable copies, so a library's sealed config works there."""
+    from drake_skills.sim.config import SimConfig, load_config
+    from drake_skills.tuning import write_config_yaml
+
+    from synthetic import WORKSPACE
+
+    lib = SkillLibrary(LibraryConfig(workspace=WORKSPACE, ridge=0.02))
+    back = load_config(write_config_yaml(lib.config, tmp_path / "lib.yaml")).library
+    assert back.dict() == lib.config.dict()
+    (tmp_path / "sim.yaml").write_text("library:\n  decision_risk: 0.02\n")
+    (tmp_path / "only_lib.yaml").write_text("decision_risk: 0.03\n")
+    for name, risk in (("sim.yaml", 0.02), ("only_lib.yaml", 0.03)):
+        got = load_config(tmp_path / name, defaults=SimConfig(library=lib.config)).library
+        assert got.decision_risk == risk and got.ridge == 0.02 and got.workspace.dict() == WORKSPACE.dict()
+    assert lib.config.decision_risk == LibraryConfig().decision_risk

@@ -8,6 +8,7 @@ the one computed from scratch, and a changed input must never meet a stale entry
 """
 import sys
 import threading
+from collections import OrderedDict
 
 import numpy as np
 import pytest
@@ -115,8 +116,9 @@ def test_a_remembered_motion_does_not_share_the_callers_array():
 
 def test_queries_from_several_threads_give_the_serial_answers_while_the_caches_evict(monkeypatch):
     """Four threads recognize beginnings of six motions at once, with a stacked cache of two entries (so that
-    every query evicts) and a thread switch every microsecond: no error, every posterior the serial one. (The
-    eviction once iterated the dict another thread was changing: "dictionary changed size during iteration".)"""
+    every query evicts) and a thread switch every microsecond: no error, every posterior the serial one. A smoke
+    test: the old eviction (it iterated a dict other threads changed) failed it in about 1 of 5 runs; the two
+    tests below replay the interleavings that broke it, deterministically."""
     monkeypatch.setattr(prefix, "_STACKED_ENTRIES", 2)
     lib, _ = _lib()
     probes = [synthetic_demo(t % 2, np.random.default_rng(10 + t)).human for t in range(6)]
@@ -145,3 +147,44 @@ def test_queries_from_several_threads_give_the_serial_answers_while_the_caches_e
     finally:
         sys.setswitchinterval(old)
     assert errors == []
+
+
+class _EmptiedByAnotherThread(OrderedDict):
+    """A cache another thread empties between this thread's size check and its eviction."""
+
+    def __len__(self):
+        n = max(super().__len__(), prefix._STACKED_ENTRIES)
+        self.clear()
+        return n
+
+
+def test_a_stacked_cache_emptied_by_another_thread_mid_eviction_still_answers():
+    lib, rng = _lib()
+    probe = synthetic_demo(1, rng).human[:40]
+    expect = lib.recognize(probe)
+    lib.recognize(probe[:30])  # builds the cache
+    cache = lib._prefix[1]
+    cache["stacked"] = _EmptiedByAnotherThread()
+    for key in [k for k in cache if k != "stacked"]:
+        del cache[key]  # so that the next query computes and evicts
+    _same_recognition(lib.recognize(probe), expect)
+
+
+class _EvictedByAnotherThread(OrderedDict):
+    """A cache from which another thread evicts every entry as soon as it is written."""
+
+    def __setitem__(self, key, value):
+        super().__setitem__(key, value)
+        super().__delitem__(key)
+
+
+def test_the_robot_covariance_of_a_component_survives_another_thread_evicting_it():
+    """``predict_robot`` needs each component's covariance; one evicted by another thread right after this one
+    computed it must still be returned (the old code read it back from the cache: KeyError)."""
+    lib, rng = _lib()
+    human = synthetic_demo(0, rng).human
+    mean, cov = lib.predict_robot(human, observed_fraction=1.0)
+    lib._expert_cache = (lib._scale, _EvictedByAnotherThread())
+    mean2, cov2 = lib.predict_robot(human, observed_fraction=1.0)
+    np.testing.assert_allclose(mean2, mean, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(cov2, cov, rtol=1e-12, atol=1e-12)
