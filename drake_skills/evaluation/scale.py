@@ -119,6 +119,10 @@ class LasaTrial:
     components: int
     #: correct, wrong, undecided, unknown
     counts: tuple[int, int, int, int]
+    #: What made or removed components (:data:`EVENTS`, as for the synthetic libraries).
+    events: dict = field(default_factory=dict)
+    #: Shape -> components whose demonstrations are mostly of that shape (0: it has none of its own).
+    per_shape: dict = field(default_factory=dict)
 
 
 def _count(outcomes) -> tuple[int, int, int, int]:
@@ -139,10 +143,15 @@ def lasa_trial(ctx: LasaContext, index: int) -> LasaTrial:
         train += perm[:s.lasa_train].tolist()
         test += perm[s.lasa_train:].tolist()
     lab = LabeledLibrary(replace(s.library, workspace=ctx.workspace))
+    events, seen = dict.fromkeys(EVENTS, 0), set()
     for j in rng.permutation(train):
-        lab.teach(ctx.demos[j])
+        tally_events(events, lab.teach(ctx.demos[j]), repeat=ctx.demos[j].task in seen)
+        seen.add(ctx.demos[j].task)
     outcomes = [lab.classify(ctx.demos[j].human, ctx.demos[j].task)[0] for j in test]
-    return LasaTrial(lab.library.n_components, _count(outcomes))
+    per_shape = dict.fromkeys(by_shape, 0)
+    for c in lab.library.components:
+        per_shape[lab.label_of(c.id)] += 1
+    return LasaTrial(lab.library.n_components, _count(outcomes), events, per_shape)
 
 
 @dataclass(frozen=True)
@@ -293,19 +302,33 @@ def evaluate_scale(settings: ScaleSettings | None = None, *, progress: bool = Tr
         demos = tuple(load_lasa(shapes, subsample=s.lasa_subsample))
         ctx = LasaContext(demos, lasa_workspace(demos), s)
         trials = run_trials(lasa_trial, range(s.lasa_orders), ctx, desc="scale: LASA orders", progress=progress)
-        rows = [[f"order {i}", t.components, *_fractions(t.counts)] for i, t in enumerate(trials)]
+        rows = [[f"order {i}", t.components, *_fractions(t.counts), *(t.events[e] for e in EVENTS)]
+                for i, t in enumerate(trials)]
         comps = np.array([t.components for t in trials], float)
         fr = np.array([_fractions(t.counts) for t in trials])
-        rows.append(["mean", float(comps.mean()), *fr.mean(axis=0).tolist()])
+        ev = np.array([[t.events[e] for e in EVENTS] for t in trials], float)
+        rows.append(["mean", float(comps.mean()), *fr.mean(axis=0).tolist(), *ev.mean(axis=0).tolist()])
         lasa_components = float(comps.mean())
         rep.tables["lasa"] = Table(
-            ["order", "components"] + list(OUTCOMES), rows,
+            ["order", "components"] + list(OUTCOMES) + list(EVENTS), rows,
             caption=(f"LASA-{len(shapes)} in one library: {s.lasa_train} of the {N_DEMOS} demonstrations of every "
                      f"shape taught in one random order, the other {N_DEMOS - s.lasa_train} recognized as whole "
-                     f"motions (fractions of {len(shapes) * (N_DEMOS - s.lasa_train)}); {len(shapes)} shapes."))
+                     f"motions (fractions of {len(shapes) * (N_DEMOS - s.lasa_train)}); {len(shapes)} shapes. Where "
+                     f"the components came from: a shape's first demonstration novel, a later one novel, splits, "
+                     f"merges, deletions."))
+        counts = {k: [t.per_shape[k] for t in trials] for k in shapes}
+        rep.tables["lasa_shapes"] = Table(
+            ["shape", "components (mean over orders)", "orders with exactly 1"],
+            [[k, float(np.mean(v)), sum(x == 1 for x in v)] for k, v in counts.items()],
+            caption=("Components per LASA shape: those whose taught demonstrations are mostly of the shape. The "
+                     "Multi_Models shapes are multi-model motions, not single patterns (the dataset's naming), so more "
+                     "than one component is a fair answer for them; 0: the shape's demonstrations joined another shape's "
+                     "component."))
         summary["lasa"] = {"shapes": len(shapes), "components_mean": lasa_components,
+                           "components_per_shape": counts,
                            **{f"{k}_mean": float(v) for k, v in zip(OUTCOMES, fr.mean(axis=0))},
-                           "components_per_order": comps.tolist()}
+                           "components_per_order": comps.tolist(),
+                           "events_per_order": [dict(t.events) for t in trials]}
     items = [(K, order) for K in s.sizes for order in s.orders]
     synth = run_trials(synthetic_trial, items, s, desc="scale: synthetic libraries", progress=progress)
     rows = [[t.n_skills, t.order, t.components, *_fractions(t.counts), t.ms_update, t.ms_recognize, t.ms_prefix,

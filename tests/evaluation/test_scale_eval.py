@@ -46,6 +46,12 @@ def test_lasa_in_one_library_is_scored_on_the_held_out_demonstrations(report):
     assert s["shapes"] == 6
     assert sum(s[f"{k}_mean"] for k in OUTCOMES) == pytest.approx(1.0, abs=1e-12)
     assert 5 <= s["components_mean"] <= 8 and s["correct_mean"] >= 0.8, s
+    for ev, n in zip(s["events_per_order"], s["components_per_order"]):
+        assert ev["novel firsts"] <= 6 and sum(ev[e] for e in EVENTS[:3]) - ev["merges"] - ev["deletions"] == n, ev
+    assert t.column("novel firsts")[0] == s["events_per_order"][0]["novel firsts"]
+    per = s["components_per_shape"]  # every component belongs to exactly one shape
+    assert len(per) == 6 and [sum(v[i] for v in per.values()) for i in range(1)] == s["components_per_order"]
+    assert report.tables["lasa_shapes"].column("shape") == list(per)
     assert "scale" in report.figures
 
 
