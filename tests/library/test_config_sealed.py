@@ -76,3 +76,9 @@ def test_a_librarys_config_writes_as_yaml_and_serves_as_the_defaults_of_a_config
         got = load_config(tmp_path / name, defaults=SimConfig(library=lib.config)).library
         assert got.decision_risk == risk and got.ridge == 0.02 and got.workspace.dict() == WORKSPACE.dict()
     assert lib.config.decision_risk == LibraryConfig().decision_risk
+
+
+def test_a_changeable_config_deletes_a_field_back_to_its_default():
+    cfg = LibraryConfig(ridge=0.5)
+    del cfg.ridge  # an ordinary dataclass: the class default shows through
+    assert "ridge" not in vars(cfg) and cfg.ridge == LibraryConfig().ridge

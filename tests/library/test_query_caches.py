@@ -188,3 +188,19 @@ def test_the_robot_covariance_of_a_component_survives_another_thread_evicting_it
     mean2, cov2 = lib.predict_robot(human, observed_fraction=1.0)
     np.testing.assert_allclose(mean2, mean, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(cov2, cov, rtol=1e-12, atol=1e-12)
+
+
+def test_a_robot_covariance_cached_for_another_cluster_at_the_same_id_is_not_used():
+    """The cache is keyed by ``id(cluster)``; a freed cluster's id can be reused by a new one, so an entry counts
+    only if it holds the very cluster asked about (a stale matrix there would condition on the wrong skill)."""
+    lib, rng = _lib()
+    human = synthetic_demo(0, rng).human
+    mean, cov = lib.predict_robot(human, observed_fraction=1.0)
+    stale = OrderedDict()
+    for c in lib._components.items:
+        d = c.cluster.scatter.shape[0]
+        stale[id(c.cluster)] = (object(), np.eye(d) * 1e3)  # another cluster's entry at this id
+    lib._expert_cache = (lib._scale, stale)
+    mean2, cov2 = lib.predict_robot(human, observed_fraction=1.0)
+    np.testing.assert_allclose(mean2, mean, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(cov2, cov, rtol=1e-12, atol=1e-12)
