@@ -43,6 +43,8 @@ ORDERS = ("random", "row")
 OUTCOMES = ("correct", "wrong", "undecided", "unknown")
 #: What made or removed components while a synthetic library learned (columns of the synthetic table).
 EVENTS = ("novel firsts", "novel repeats", "splits", "merges", "deletions")
+_EVENTS_CAPTION = ("Where the components came from: a {}'s first demonstration novel, a later one novel, splits, "
+                   "merges, deletions.")
 
 
 @dataclass
@@ -313,9 +315,8 @@ def evaluate_scale(settings: ScaleSettings | None = None, *, progress: bool = Tr
             ["order", "components"] + list(OUTCOMES) + list(EVENTS), rows,
             caption=(f"LASA-{len(shapes)} in one library: {s.lasa_train} of the {N_DEMOS} demonstrations of every "
                      f"shape taught in one random order, the other {N_DEMOS - s.lasa_train} recognized as whole "
-                     f"motions (fractions of {len(shapes) * (N_DEMOS - s.lasa_train)}); {len(shapes)} shapes. Where "
-                     f"the components came from: a shape's first demonstration novel, a later one novel, splits, "
-                     f"merges, deletions."))
+                     f"motions (fractions of {len(shapes) * (N_DEMOS - s.lasa_train)}); {len(shapes)} shapes. "
+                     + _EVENTS_CAPTION.format("shape")))
         counts = {k: [t.per_shape[k] for t in trials] for k in shapes}
         rep.tables["lasa_shapes"] = Table(
             ["shape", "components (mean over orders)", "orders with exactly 1"],
@@ -340,8 +341,8 @@ def evaluate_scale(settings: ScaleSettings | None = None, *, progress: bool = Tr
                  f"{s.scatter}), {s.demos_per_skill} demonstrations each, interleaved (random) or in a row; one new "
                  f"demonstration per skill recognized as a whole motion. Median CPU ms of partial_fit over the "
                  f"last third of the stream, of whole-motion recognition, and of {s.prefix_probes} beginnings "
-                 f"(30-90 %) recognized without a fraction (one process, one BLAS thread). Where the components "
-                 f"came from: a skill's first demonstration novel, a later one novel, splits, merges, deletions."))
+                 f"(30-90 %) recognized without a fraction (one process, one BLAS thread). "
+                 + _EVENTS_CAPTION.format("skill")))
     summary["synthetic"] = [{"skills": t.n_skills, "order": t.order, "components": t.components,
                              **dict(zip(OUTCOMES, _fractions(t.counts))), "ms_update": t.ms_update,
                              "ms_recognize": t.ms_recognize, "ms_prefix": t.ms_prefix,

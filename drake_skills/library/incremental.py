@@ -64,6 +64,7 @@ from drake_skills._checks import as_finite_array
 from drake_skills.data.demonstration import Demonstration
 from drake_skills.data.workspace import Workspace
 from drake_skills.library.algorithm import ComponentModel, Components, Metric, fold_in, gating_metric
+from drake_skills.library.bounded import put_bounded
 from drake_skills.library.config import NOVELTY_TESTS, LibraryConfig, WorkspaceBounds
 from drake_skills.library.guards import UNITS_RANGE, data_warning
 from drake_skills.library.novelty import novelty_rule
@@ -271,12 +272,7 @@ class SkillLibrary(RecognitionMixin, FileMixin):
         C = (k * self._shared_cov() + c.cluster.scatter) / (k + c.support - 1.0)
         C = 0.5 * (C + C.T)
         C.setflags(write=False)
-        if len(cache) >= 64:  # a few d x d matrices, not one per component of a large library
-            try:  # one step under the GIL (iterating the dict would race with other threads' queries)
-                cache.popitem(last=False)
-            except KeyError:  # another thread emptied it
-                pass
-        cache[key] = (c.cluster, C)
+        put_bounded(cache, key, (c.cluster, C), 64)  # a few d x d matrices, not one per component of a large library
         return C
 
     def _cached(self, name: str, compute):

@@ -35,6 +35,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from drake_skills.library.bounded import put_bounded
 from drake_skills.promp.basis import GaussianBasis
 from drake_skills.promp.gaussian import logsumexp
 
@@ -130,12 +131,7 @@ def score_phases(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarray
                 for i, j in enumerate(missing):
                     cache[(phases[j], int(m))] = (lam_m[i], Q_m[i])
             hit = (np.stack([cache[(f, int(m))][0] for f in phases]), np.stack([cache[(f, int(m))][1] for f in phases]))
-            if len(stacked) >= _STACKED_ENTRIES:
-                try:  # popitem is one step under the GIL; iterating the dict raced with other threads' queries
-                    stacked.popitem(last=False)
-                except KeyError:  # another thread emptied it
-                    pass
-            stacked[(phases, int(m))] = hit
+            put_bounded(stacked, (phases, int(m)), hit, _STACKED_ENTRIES)
         lam, Q = hit
     J, _, N = Phi.shape
     K = means_h.shape[0]
