@@ -162,7 +162,6 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / n if n > 1e-12 else v
 
 
-@functools.lru_cache(maxsize=1)
 def _check_subject(index: int, seed: int) -> None:
     """Raise ValueError unless ``index`` is 1-based and ``seed`` non-negative."""
     if int(index) < 1:
@@ -179,6 +178,7 @@ def _draw_body(cfg, rng: np.random.Generator) -> tuple[float, float, float]:
     return arm, lean, scale
 
 
+@functools.lru_cache(maxsize=1)
 def _scene():
     return load_scene_config()
 
