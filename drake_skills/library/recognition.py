@@ -141,14 +141,13 @@ class RecognitionMixin:
         h = self.n_human
         if not len(comps):
             return self._empty_recognition(h)
-        metric = self._metric()
         if observed_fraction == 1:
             w_h = ridge_weights(y, cfg.basis_human, cfg.ridge)
-            logp, d2 = gating_scores(w_h, comps, metric, self._whitened_means())
+            logp, d2 = gating_scores(w_h, comps, self._metric(), self._whitened_means())
             return self._decide(logp, d2, h, np.ones(len(comps)))
         pm = self._prefix_model()
         logp, d2, dof = score_at_phase(y, observed_fraction, pm.means_h, 1.0 + 1.0 / comps.support, pm.chol,
-                                       cfg.basis_human, self._noise(), self._prefix_cache(metric))
+                                       cfg.basis_human, self._noise(), self._prefix_cache())
         return self._decide(logp, d2, dof, np.full(len(comps), observed_fraction))
 
     def _recognize_prefix(self, path: "_Path") -> Recognition:
@@ -176,7 +175,7 @@ class RecognitionMixin:
             idx = np.flatnonzero(keep)
         if idx is None or idx.size == len(comps):
             sc = score_prefix(ys, guess, pm.means_h, inflate, pm.chol, cfg.basis_human, noise,
-                              self._prefix_cache(metric), band)
+                              self._prefix_cache(), band)
             return self._decide(sc.log_likelihoods, sc.mahalanobis_sq, sc.dof, sc.phases)
         # the components ruled out cannot explain the samples: log-likelihood -inf, distance inf
         K = len(comps)
@@ -184,7 +183,7 @@ class RecognitionMixin:
         dof, phases = np.full(K, float(self.n_human)), np.clip(guess, 1.0 / cfg.n_samples, 1.0)
         if idx.size:
             sc = score_prefix(ys, guess[idx], pm.means_h[idx], inflate[idx], pm.chol, cfg.basis_human, noise,
-                              self._prefix_cache(metric), band[idx])
+                              self._prefix_cache(), band[idx])
             logp[idx], d2[idx], dof[idx], phases[idx] = sc.log_likelihoods, sc.mahalanobis_sq, sc.dof, sc.phases
         return self._decide(logp, d2, dof, phases, scored=idx)
 
@@ -287,7 +286,7 @@ class RecognitionMixin:
     def _noise(self) -> float:
         return observation_noise(self._scale, self.config.observation_noise)
 
-    def _prefix_cache(self, metric) -> dict:
+    def _prefix_cache(self) -> dict:
         """Eigendecompositions of prefix recognition for the current scale (emptied when the library learns)."""
         if getattr(self, "_prefix", (None,))[0] is not self._scale:
             self._prefix = (self._scale, {})
@@ -302,13 +301,12 @@ class RecognitionMixin:
     def _phase_of(self, path: "_Path", c: ComponentModel) -> float:
         """The phase of one component that explains the normalized path ``y`` best (see :mod:`.prefix`)."""
         cfg = self.config
-        metric = self._metric()
         guess = path.length / max(c.cluster.path_length, 1e-12)
         ys = path.resample(_prefix_samples(cfg.n_samples, min(1.0, guess)))
         pm = self._prefix_model()
         sc = score_prefix(ys, np.array([guess]), pm.means_h[[self._components.index(c.id)]],
                           np.array([1.0 + 1.0 / c.support]), pm.chol, cfg.basis_human, self._noise(),
-                          self._prefix_cache(metric))
+                          self._prefix_cache())
         return float(sc.phases[0])
 
 
