@@ -16,10 +16,16 @@ per phase serves all components: with ``Sigma = L L^T`` and ``L^T G L = Q Lambda
     tr(A^{-1})            = sum_i 1 / (sigma^2 + c lambda_i)
 
 so a recognition costs one ``h x h`` eigendecomposition per phase of the grid plus
-O(K h) per phase, not O(K h^3). The statistics are those of
+O(K h) per phase, not O(K h^3). The fit statistic is the chi-square statistic of the
+least-squares weights the samples give in the directions they see well (eigenvalues of
+``Phi^T Phi`` at least :data:`SEEN_RCOND` of the largest, ``n`` per dimension): with
+those directions ``V``, their eigenvalues ``g`` and ``B = V_g^T Sigma V_g``
+(``V_g = I_D (x) V g^{1/2}``) ``= R Gamma R^T``, the coordinates
+``v_k = R^T (I_D (x) g^{-1/2} V^T H y - V_g^T mu_k)`` have variances ``sigma^2 + c gamma_i``,
+again one eigendecomposition per phase for all components. The statistics are those of
 :func:`drake_skills.promp.interaction.prefix_statistics` (the marginal log-likelihood,
-the chi-square statistic of the part of the misfit the basis spans, and its degrees of
-freedom ``D rank(Phi)``, exact under the model), which the tests check this against.
+``d2`` and its ``D n`` degrees of freedom, exact under the model), which the tests
+check this against.
 
 The phase of component ``k`` is the grid phase of highest likelihood within a band
 around ``path length observed / component's mean path length`` (the path-length
@@ -38,6 +44,7 @@ import numpy as np
 from drake_skills.library.bounded import put_bounded
 from drake_skills.promp.basis import GaussianBasis
 from drake_skills.promp.gaussian import logsumexp
+from drake_skills.promp.interaction import SEEN_RCOND
 
 _LOG_2PI = np.log(2.0 * np.pi)
 #: Phases tried: 1/20 ... 1 in steps of 1/20.
@@ -48,18 +55,16 @@ PHASE_BAND = 1.5
 
 @lru_cache(maxsize=2048)
 def _basis_at(basis: GaussianBasis, f: float, m: int):
-    """Phi over ``m`` evenly spaced phases of ``[0, f]`` (m, N), its Gram matrix and pseudo-inverse (cached)."""
+    """Phi over ``m`` evenly spaced phases of ``[0, f]`` (m, N) and its Gram matrix (cached)."""
     Phi = basis.phi(np.linspace(0.0, f, m))
-    PtP = Phi.T @ Phi
-    Pinv = np.linalg.pinv(PtP, rcond=1e-10, hermitian=True)
-    return Phi, PtP, Pinv
+    return Phi, Phi.T @ Phi
 
 
 @lru_cache(maxsize=256)
 def _basis_terms(basis: GaussianBasis, phases: tuple, m: int):
-    """:func:`_basis_at` for each phase, stacked: arrays of shapes (J, m, N), (J, N, N), (J, N, N) (cached, read-only)."""
+    """:func:`_basis_at` for each phase, stacked: arrays of shapes (J, m, N), (J, N, N) (cached, read-only)."""
     parts = [_basis_at(basis, f, m) for f in phases]
-    out = tuple(np.stack([p[i] for p in parts]) for i in range(3))
+    out = tuple(np.stack([p[i] for p in parts]) for i in range(2))
     for a in out:
         a.setflags(write=False)
     return out
@@ -118,39 +123,117 @@ def score_phases(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarray
     """
     m, D = y.shape
     phases = tuple(float(f) for f in phases)
-    Phi, PtP, Pinv = _basis_terms(basis, phases, int(m))
-    if cache is None:
-        lam, Q = _whitened_gram(PtP, chol, D)
-    else:
-        stacked = cache.setdefault("stacked", OrderedDict())
-        hit = stacked.get((phases, int(m)))
-        if hit is None:  # one entry per (phase, m): the phase sets asked for vary, the phases themselves recur
-            missing = [j for j, f in enumerate(phases) if (f, int(m)) not in cache]
-            if missing:
-                lam_m, Q_m = _whitened_gram(PtP[missing], chol, D)
-                for i, j in enumerate(missing):
-                    cache[(phases[j], int(m))] = (lam_m[i], Q_m[i])
-            hit = (np.stack([cache[(f, int(m))][0] for f in phases]), np.stack([cache[(f, int(m))][1] for f in phases]))
-            put_bounded(stacked, (phases, int(m)), hit, _STACKED_ENTRIES)
-        lam, Q = hit
+    Phi, PtP = _basis_terms(basis, phases, int(m))
+    lam, Q = _per_phase(cache, "gram", phases, int(m), lambda fs: _whitened_gram(_basis_terms(basis, fs, int(m))[1],
+                                                                                  chol, D))
     J, _, N = Phi.shape
     K = means_h.shape[0]
     Mt = means_h.reshape(K, D, N).transpose(0, 2, 1)       # (K, N, D)
     r = y[None, None] - np.matmul(Phi[:, None], Mt[None])   # (J, K, m, D) residuals of the prior means
     rr = np.sum(r * r, axis=(2, 3))
     U = np.matmul(Phi.transpose(0, 2, 1)[:, None], r).transpose(0, 1, 3, 2)   # (J, K, D, N): u = H r
-    span = np.sum(np.matmul(U, Pinv[:, None]) * U, axis=(2, 3))              # u^T G^+ u
     v = np.matmul(U.reshape(J, K, D * N) @ chol, Q)                         # (J, K, h): Q^T L^T u
     c = np.asarray(inflate, float)[None, :, None]            # (1, K, 1)
-    denom = noise_var + c * lam[:, None, :]                  # (J, K, h)
-    explained = c[..., 0] * np.sum(v * v / denom, axis=2)
+    cl = c * lam[:, None, :]
+    explained = c[..., 0] * np.sum(v * v / (noise_var + cl), axis=2)
     d2_obs = (rr - explained) / noise_var
-    logdet = np.sum(np.log1p(c * lam[:, None, :] / noise_var), axis=2)
+    logdet = np.sum(np.log1p(cl / noise_var), axis=2)
     loglik = -0.5 * (m * D * (_LOG_2PI + np.log(noise_var)) + logdet + d2_obs)
-    d2 = np.maximum((span - explained) / noise_var, 0.0)
-    rank = D * np.rint(np.einsum("jnk,jkn->j", PtP, Pinv))  # tr(G G^+): directions spanned, per phase
-    dof = np.broadcast_to(np.maximum(rank, 1e-9)[:, None], (J, K)).copy()
+    d2, dof = fit_statistic(y, phases, means_h, inflate, chol, basis, noise_var, cache)
     return loglik, d2, dof
+
+
+def fit_statistic(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarray, chol: np.ndarray,
+                  basis: GaussianBasis, noise_var: float, cache: dict | None = None):
+    """The fit statistic ``d2`` of :func:`score_phases` and its degrees of freedom, arrays of shape (J, K).
+
+    The coordinates need no residual of the samples: ``v_k = a_j - mu_k^T M_j`` with
+    ``a_j = W_j^T H_j y`` (:func:`fit_terms`), one (K, h) x (h, h) product per phase.
+    """
+    m, D = y.shape
+    phases = tuple(float(f) for f in phases)
+    Phi = _basis_terms(basis, phases, int(m))[0]
+    W, M, gam, seen = fit_terms(basis, phases, int(m), chol, D, cache)[:4]
+    J, _, N = Phi.shape
+    Hy = np.matmul(Phi.transpose(0, 2, 1), y).transpose(0, 2, 1).reshape(J, D * N)   # H y, dimension-major
+    v = np.einsum("jh,jhn->jn", Hy, W)[:, None, :] - np.matmul(means_h, M)          # (J, K, h)
+    var = noise_var + np.asarray(inflate, float)[None, :, None] * gam[:, None, :]
+    d2 = np.sum(np.where(seen[:, None, :], v * v / var, 0.0), axis=2)
+    dof = np.maximum(seen.sum(axis=1).astype(float), 1e-9)
+    return d2, np.broadcast_to(dof[:, None], d2.shape).copy()
+
+
+def fit_terms(basis: GaussianBasis, phases: tuple, m: int, chol: np.ndarray, D: int, cache: dict | None = None):
+    """Per phase, the maps of the fit statistic (kept in ``cache``), padded to ``h = D N`` columns.
+
+    Returns
+    -------
+    W, M : arrays, shape (J, h, h)
+        From ``H y`` and from a component's mean to the coordinates ``v`` (columns: the
+        coordinates in ascending order of prior variance, the padding first).
+    gamma : array, shape (J, h)
+        The coordinates' prior variances per unit ``c`` (0 in the padding).
+    seen : array of bool, shape (J, h)
+        Which columns are coordinates.
+    Vs, Vg : arrays, shape (J, N, N)
+        Per dimension, ``V g^{-1/2}`` and ``V g^{1/2}`` (columns of zeros for the directions
+        not seen): ``|Vs^T Phi^T y_d - Vg^T mu_d|^2`` summed over the dimensions is
+        ``|v|^2``, the squared norm of the residual's part the seen directions hold.
+    """
+    return _per_phase(cache, "fit", tuple(phases), int(m), lambda fs: _fit_terms(basis, fs, int(m), chol, D))
+
+
+def _fit_terms(basis: GaussianBasis, phases: tuple, m: int, chol: np.ndarray, D: int):
+    """:func:`fit_terms`, computed."""
+    N = basis.n_basis
+    h = D * N
+    J = len(phases)
+    W, M = np.zeros((J, h, h)), np.zeros((J, h, h))
+    gam, seen = np.zeros((J, h)), np.zeros((J, h), bool)
+    Vs, Vg1 = np.zeros((J, N, N)), np.zeros((J, N, N))
+    for j, f in enumerate(phases):
+        V, g = _seen_directions(basis, f, m)
+        n, k = g.size, D * g.size
+        Vs[j, :, N - n:], Vg1[j, :, N - n:] = V / np.sqrt(g), V * np.sqrt(g)
+        Vg = np.kron(np.eye(D), Vg1[j, :, N - n:])          # (h, D n)
+        LV = chol.T @ Vg
+        B = LV.T @ LV                                        # Vg^T Sigma Vg
+        gj, R = np.linalg.eigh(0.5 * (B + B.T))              # ascending
+        W[j, :, h - k:] = np.kron(np.eye(D), Vs[j, :, N - n:]) @ R
+        M[j, :, h - k:] = Vg @ R
+        gam[j, h - k:] = np.clip(gj, 0.0, None)
+        seen[j, h - k:] = True
+    return W, M, gam, seen, Vs, Vg1
+
+
+@lru_cache(maxsize=2048)
+def _seen_directions(basis: GaussianBasis, f: float, m: int):
+    """Eigenvectors (N, n) and eigenvalues (n,) of ``Phi^T Phi`` at least :data:`SEEN_RCOND` of the largest (cached)."""
+    g, V = np.linalg.eigh(_basis_at(basis, f, m)[1])
+    keep = g >= SEEN_RCOND * g[-1]
+    return V[:, keep], g[keep]
+
+
+def _per_phase(cache: dict | None, kind: str, phases: tuple, m: int, compute):
+    """``compute(phases)`` (a tuple of arrays stacked over the phases), kept per phase and per phase set in ``cache``.
+
+    ``cache[kind]`` holds one entry per ``(phase, m)`` (the phases recur; the sets asked
+    for vary) and the last :data:`_STACKED_ENTRIES` stacked sets; ``compute`` is called
+    for the phases missing only.
+    """
+    if cache is None:
+        return compute(phases)
+    store = cache.setdefault(kind, {"stacked": OrderedDict(), "phase": {}})
+    hit = store["stacked"].get((phases, m))
+    if hit is None:
+        missing = tuple(f for f in phases if (f, m) not in store["phase"])
+        if missing:
+            parts = compute(missing)
+            for i, f in enumerate(missing):
+                store["phase"][(f, m)] = tuple(p[i] for p in parts)
+        hit = tuple(np.stack(a) for a in zip(*(store["phase"][(f, m)] for f in phases)))
+        put_bounded(store["stacked"], (phases, m), hit, _STACKED_ENTRIES)
+    return hit
 
 
 def score_at_phase(y, f: float, means_h, inflate, chol, basis: GaussianBasis, noise_var: float,

@@ -157,7 +157,6 @@ class RecognitionMixin:
         h = self.n_human
         if not len(comps):
             return self._empty_recognition(h)
-        metric = self._metric()
         pm = self._prefix_model()
         guess = path.length / np.maximum(comps.path_length, 1e-12)
         ys = path.resample(_prefix_samples(cfg.n_samples, float(np.median(np.minimum(guess, 1.0)))))
@@ -166,12 +165,8 @@ class RecognitionMixin:
         idx = None
         band = phase_band(guess)
         if len(comps) > PRUNE_MIN_COMPONENTS and isinstance(self._rule, Chi2Rule):
-            sigma_max = self._cached("sigma_max", lambda: float(np.linalg.eigvalsh(metric.cov)[-1]))
-            # the quantile at h degrees of freedom is at least the one at D rank(Phi) <= h a
-            # beginning is tested at, so the bound never rules out a component the test keeps
-            keep = prefix_candidates(comps.means_h, inflate, PHASE_GRID, band, ys, sigma_max,
-                                     cfg.basis_human, noise, chi2_ppf(cfg.novelty_quantile, self.n_human),
-                                     unshrink=pm.per_dim)
+            keep = prefix_candidates(ys, PHASE_GRID, band, pm.means_h, inflate, pm.chol, cfg.basis_human, noise,
+                                     cfg.novelty_quantile, self._prefix_cache())
             idx = np.flatnonzero(keep)
         if idx is None or idx.size == len(comps):
             sc = score_prefix(ys, guess, pm.means_h, inflate, pm.chol, cfg.basis_human, noise,
@@ -271,7 +266,7 @@ class RecognitionMixin:
             cfg = self.config
             Sinv = _unshrink(cfg.basis_human, int(cfg.n_samples), float(cfg.ridge))
             U = np.kron(np.eye(self.dim_human_), Sinv)
-            return _PrefixModel(self._components.means_h @ U.T, U @ self._metric().chol, U, Sinv)
+            return _PrefixModel(self._components.means_h @ U.T, U @ self._metric().chol, U)
         return self._cached("prefix_model", compute)
 
     def observation_noise(self) -> float:
@@ -323,12 +318,11 @@ def _unshrink(basis: GaussianBasis, n_samples: int, ridge: float) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class _PrefixModel:
-    """:meth:`RecognitionMixin._prefix_model`: means (K, h), the covariance's factor (h, h), ``S^-1`` (h, h) and per dimension (N, N)."""
+    """:meth:`RecognitionMixin._prefix_model`: means (K, h), the covariance's factor (h, h) and ``S^-1`` (h, h)."""
 
     means_h: np.ndarray
     chol: np.ndarray
     unshrink: np.ndarray
-    per_dim: np.ndarray
 
 
 def _prefix_samples(n_samples: int, fraction: float) -> int:

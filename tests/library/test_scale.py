@@ -225,23 +225,21 @@ def test_the_pruning_bound_lies_below_the_exact_fit_statistic_of_every_component
             lib.partial_fit(d)
         humans = [d.human[: int(len(d.human) * f)] for d in demos[1::6] for f in (0.2, 0.5, 1.0)]
     cfg, comps = lib.config, lib._components
-    metric = lib._metric()
+    pm = lib._prefix_model()                   # the model recognition scores against (the ridge undone)
     inflate = 1.0 + 1.0 / comps.support
-    sigma_max = float(np.linalg.eigvalsh(metric.cov)[-1])
-    threshold = recognition.chi2_ppf(cfg.novelty_quantile, lib.n_human)
     pruned = []
     grid = np.array(PHASE_GRID)
     noise = lib.observation_noise()
     for human in humans:
         ys, allowed = _prefix_problem(lib, human)
-        _, d2, _ = score_phases(ys, grid, comps.means_h, inflate, metric.chol, cfg.basis_human, noise)
-        d2 = d2.T                                                       # (K, 20): every component at every phase
-        for q in (3, 8):
-            bound = fit_lower_bounds(comps.means_h, inflate, grid, ys, sigma_max, cfg.basis_human, noise, n_probes=q)
-            assert (bound <= d2 + 1e-6 * (1 + d2)).all(), np.max(bound - d2)
-        keep = prefix_candidates(comps.means_h, inflate, grid, allowed, ys, sigma_max, cfg.basis_human, noise,
-                                 threshold)
-        assert keep[((d2 <= threshold) & allowed).any(axis=1)].all()
+        _, d2, dof = score_phases(ys, grid, pm.means_h, inflate, pm.chol, cfg.basis_human, noise)
+        d2, dof = d2.T, dof.T                                           # (K, 20): every component at every phase
+        bound, bdof = fit_lower_bounds(ys, grid, pm.means_h, inflate, pm.chol, cfg.basis_human, noise)
+        assert (bound <= d2 + 1e-6 * (1 + d2)).all(), np.max(bound - d2)
+        np.testing.assert_array_equal(bdof, dof)
+        keep = prefix_candidates(ys, grid, allowed, pm.means_h, inflate, pm.chol, cfg.basis_human, noise,
+                                 cfg.novelty_quantile)
+        assert keep[((d2 <= recognition.chi2_ppf(cfg.novelty_quantile, dof)) & allowed).any(axis=1)].all()
         pruned.append(1.0 - keep.mean())
     if data == "synthetic":
         assert np.mean(pruned) > 0.8, pruned

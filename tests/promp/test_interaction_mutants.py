@@ -15,18 +15,42 @@ def _model(rng, d):
     return rng.standard_normal(d), A @ A.T / d + 0.05 * np.eye(d)
 
 
-@pytest.mark.parametrize("D, m, z_end, dof", [(1, 1, 0.0, 1.0), (2, 1, 0.0, 2.0), (1, 3, 0.3, 3.0), (3, 2, 0.3, 6.0),
-                                              (2, 40, 1.0, 12.0)])
-def test_prefix_dof_is_exactly_D_times_the_rank_of_the_observed_basis(D, m, z_end, dof):
-    # one sample in one dimension spans one direction: dof 1, not a floor above it
+@pytest.mark.parametrize("D, m, z_end, dof", [(1, 1, 0.0, 1.0), (2, 1, 0.0, 2.0), (1, 3, 0.0, 1.0), (3, 2, 0.3, 6.0),
+                                              (2, 40, 1.0, 8.0), (2, 40, 0.5, 4.0)])
+def test_prefix_dof_is_D_times_the_directions_the_samples_see_well(D, m, z_end, dof):
+    # at seen_rcond 0.03: one sample in one dimension spans one direction (dof 1, not a floor above it); samples all at
+    # phase 0 see one direction however many; two samples at 0 and 0.3 see a second at 0.22 of the
+    # first; 40 samples of the whole motion see 4 of 6 (eigenvalues 1, 0.52, 0.18, 0.040 | 0.0061,
+    # 0.0006 of the largest), of half of it 2 (1, 0.21 | 0.019)
     rng = np.random.default_rng(10 * D + m)
     basis = GaussianBasis(6)
     mean_h, cov_hh = _model(rng, D * 6)
-    Phi_o = basis.phi(np.linspace(0.0, z_end, m))  # rank min(m, 6): 40 samples over the whole motion span all 6
+    Phi_o = basis.phi(np.linspace(0.0, z_end, m))
     y = rng.standard_normal((m, D))
-    _, d2, got = prefix_statistics(mean_h, cov_hh, Phi_o, y, 0.1)
-    assert got == dof  # exact: a chi-square quantile is taken at it
+    _, d2, got = prefix_statistics(mean_h, cov_hh, Phi_o, y, 0.1, seen_rcond=0.03)
+    g = np.linalg.eigvalsh(Phi_o.T @ Phi_o)
+    assert got == dof == D * np.sum(g >= 0.03 * g[-1])  # exact: a chi-square quantile is taken at it
     assert d2 >= 0
+
+
+@pytest.mark.parametrize("rcond", [1e-10, 0.03, 0.3])
+def test_prefix_d2_is_the_mahalanobis_distance_of_the_seen_least_squares_weights(rcond):
+    # the least-squares weights' coordinates along the seen eigenvectors V of Phi^T Phi: their misfit
+    # V^T (w_ls - mu) has covariance sigma^2 g^-1 + V^T Sigma V (per dimension, stacked)
+    rng = np.random.default_rng(4)
+    basis = GaussianBasis(6)
+    mean_h, cov_hh = _model(rng, 12)
+    Phi_o = basis.phi(np.linspace(0.0, 0.5, 15))
+    y = rng.standard_normal((15, 2))
+    g, V = np.linalg.eigh(Phi_o.T @ Phi_o)
+    keep = g >= rcond * g[-1]
+    Vk = np.kron(np.eye(2), V[:, keep])
+    w_ls = np.linalg.lstsq(Phi_o, y, rcond=None)[0].T.reshape(-1)
+    e = Vk.T @ (w_ls - mean_h)
+    C = 0.1 * np.diag(np.tile(1.0 / g[keep], 2)) + Vk.T @ cov_hh @ Vk
+    _, d2, dof = prefix_statistics(mean_h, cov_hh, Phi_o, y, 0.1, seen_rcond=rcond)
+    assert dof == 2 * keep.sum() and (keep.sum() < 6) == (rcond > 1e-3)
+    assert d2 == pytest.approx(float(e @ np.linalg.solve(C, e)), rel=1e-7)
 
 
 def _fitted():

@@ -10,7 +10,7 @@ import pytest
 from scipy.stats import multivariate_normal
 
 from drake_skills.promp.basis import GaussianBasis
-from drake_skills.promp.interaction import InteractionProMP, observation_log_likelihood
+from drake_skills.promp.interaction import SEEN_RCOND, InteractionProMP, observation_log_likelihood
 
 
 def _direct(mean_h, cov_hh, Phi_o, y, noise):
@@ -79,19 +79,20 @@ def test_log_likelihood_human_uses_the_human_block_the_floor_and_the_noise():
         assert got[2] == 22
 
 
-def _direct_fit_statistic(mean_h, cov_hh, Phi_o, y, noise):
-    """The prefix test's statistic from explicit matrices: (u^T G^+ u - u^T S A^-1 u) / noise, u = H r,
-    G = H H^T, A = noise I + G S, and its degrees of freedom, the rank of G (chi-square exactly under
-    the model; tests/library/test_prefix_calibration.py)."""
+def _direct_fit_statistic(mean_h, cov_hh, Phi_o, y, noise, rcond=SEEN_RCOND):
+    """The prefix test's statistic from explicit matrices in the samples' space: the residual ``r`` projected on the
+    orthonormal sample-space directions ``E`` the basis sees well (left singular vectors of ``Phi_o`` with squared
+    singular value at least ``rcond`` of the largest, per dimension), ``z = E^T r``, against its covariance
+    ``E^T (noise I + H^T S H) E``; dof the number of directions (chi-square exactly under the model;
+    tests/library/test_prefix_calibration.py)."""
     D = y.shape[1]
     HT = np.kron(np.eye(D), Phi_o)
     r = y.T.reshape(-1) - HT @ mean_h
-    u = HT.T @ r
-    G = HT.T @ HT
-    A = noise * np.eye(G.shape[0]) + G @ cov_hh
-    d2 = (u @ np.linalg.pinv(G, rcond=1e-10, hermitian=True) @ u - u @ cov_hh @ np.linalg.solve(A, u)) / noise
-    ev = np.linalg.eigvalsh(G)
-    return max(d2, 0.0), float(np.sum(ev > 1e-10 * ev.max()))
+    Uo, sv, _ = np.linalg.svd(Phi_o, full_matrices=False)
+    E = np.kron(np.eye(D), Uo[:, sv ** 2 >= rcond * sv[0] ** 2])
+    z = E.T @ r
+    C = E.T @ (noise * np.eye(r.size) + HT @ cov_hh @ HT.T) @ E
+    return float(z @ np.linalg.solve(C, z)), float(E.shape[1])
 
 
 @pytest.mark.parametrize("f", [0.4, 0.75])
