@@ -79,7 +79,7 @@ def _whitened_gram(PtP: np.ndarray, chol: np.ndarray, D: int):
     """Eigendecompositions of ``L^T (I_D (x) PtP_j) L`` for every phase j: (J, h) eigenvalues, (J, h, h) vectors."""
     N = PtP.shape[1]
     Ld = chol.reshape(D, N, -1)                          # rows of L per dimension: (D, N, h)
-    Gt = np.einsum("dnh,jnk,dkg->jhg", Ld, PtP, Ld)
+    Gt = sum(np.matmul(Ld[d].T, np.matmul(PtP, Ld[d])) for d in range(D))   # sum_d L_d^T PtP_j L_d
     lam, Q = np.linalg.eigh(0.5 * (Gt + Gt.transpose(0, 2, 1)))
     return np.clip(lam, 0.0, None), Q
 
@@ -153,7 +153,7 @@ def fit_statistic(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarra
     m, D = y.shape
     phases = tuple(float(f) for f in phases)
     Phi = _basis_terms(basis, phases, int(m))[0]
-    W, M, gam, seen = fit_terms(basis, phases, int(m), chol, D, cache)[:4]
+    W, M, gam, seen = fit_terms(basis, phases, int(m), chol, D, cache)
     J, _, N = Phi.shape
     Hy = np.matmul(Phi.transpose(0, 2, 1), y).transpose(0, 2, 1).reshape(J, D * N)   # H y, dimension-major
     v = np.einsum("jh,jhn->jn", Hy, W)[:, None, :] - np.matmul(means_h, M)          # (J, K, h)
@@ -175,35 +175,35 @@ def fit_terms(basis: GaussianBasis, phases: tuple, m: int, chol: np.ndarray, D: 
         The coordinates' prior variances per unit ``c`` (0 in the padding).
     seen : array of bool, shape (J, h)
         Which columns are coordinates.
-    Vs, Vg : arrays, shape (J, N, N)
-        Per dimension, ``V g^{-1/2}`` and ``V g^{1/2}`` (columns of zeros for the directions
-        not seen): ``|Vs^T Phi^T y_d - Vg^T mu_d|^2`` summed over the dimensions is
-        ``|v|^2``, the squared norm of the residual's part the seen directions hold.
     """
     return _per_phase(cache, "fit", tuple(phases), int(m), lambda fs: _fit_terms(basis, fs, int(m), chol, D))
 
 
 def _fit_terms(basis: GaussianBasis, phases: tuple, m: int, chol: np.ndarray, D: int):
-    """:func:`fit_terms`, computed."""
+    """:func:`fit_terms`, computed (one batched eigendecomposition per number of directions seen)."""
     N = basis.n_basis
     h = D * N
     J = len(phases)
     W, M = np.zeros((J, h, h)), np.zeros((J, h, h))
     gam, seen = np.zeros((J, h)), np.zeros((J, h), bool)
-    Vs, Vg1 = np.zeros((J, N, N)), np.zeros((J, N, N))
-    for j, f in enumerate(phases):
-        V, g = _seen_directions(basis, f, m)
-        n, k = g.size, D * g.size
-        Vs[j, :, N - n:], Vg1[j, :, N - n:] = V / np.sqrt(g), V * np.sqrt(g)
-        Vg = np.kron(np.eye(D), Vg1[j, :, N - n:])          # (h, D n)
-        LV = chol.T @ Vg
-        B = LV.T @ LV                                        # Vg^T Sigma Vg
-        gj, R = np.linalg.eigh(0.5 * (B + B.T))              # ascending
-        W[j, :, h - k:] = np.kron(np.eye(D), Vs[j, :, N - n:]) @ R
-        M[j, :, h - k:] = Vg @ R
-        gam[j, h - k:] = np.clip(gj, 0.0, None)
-        seen[j, h - k:] = True
-    return W, M, gam, seen, Vs, Vg1
+    dirs = [_seen_directions(basis, f, m) for f in phases]
+    for n in sorted({g.size for _, g in dirs}):
+        js = [j for j, (_, g) in enumerate(dirs) if g.size == n]
+        V = np.stack([dirs[j][0] for j in js])                       # (G, N, n)
+        g = np.stack([dirs[j][1] for j in js])[:, None, :]           # (G, 1, n)
+        Vg, Vs = np.zeros((len(js), h, D * n)), np.zeros((len(js), h, D * n))
+        for d in range(D):                                           # I_D (x) V g^(+-1/2), block diagonal
+            Vg[:, d * N:(d + 1) * N, d * n:(d + 1) * n] = V * np.sqrt(g)
+            Vs[:, d * N:(d + 1) * N, d * n:(d + 1) * n] = V / np.sqrt(g)
+        LV = np.matmul(chol.T, Vg)
+        B = np.matmul(LV.transpose(0, 2, 1), LV)                     # Vg^T Sigma Vg
+        gj, R = np.linalg.eigh(0.5 * (B + B.transpose(0, 2, 1)))     # ascending
+        k = D * n
+        W[js, :, h - k:] = np.matmul(Vs, R)
+        M[js, :, h - k:] = np.matmul(Vg, R)
+        gam[js, h - k:] = np.clip(gj, 0.0, None)
+        seen[js, h - k:] = True
+    return W, M, gam, seen
 
 
 @lru_cache(maxsize=2048)

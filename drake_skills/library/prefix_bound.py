@@ -39,7 +39,7 @@ def fit_lower_bounds(ys: np.ndarray, phases, means_h: np.ndarray, inflate: np.nd
         As :func:`~drake_skills.library.prefix.score_phases` (``cache`` shares its
         decompositions).
     n_directions : int
-        Coordinates whose terms are summed exactly.
+        Coordinates summed per phase.
 
     Returns
     -------
@@ -49,35 +49,28 @@ def fit_lower_bounds(ys: np.ndarray, phases, means_h: np.ndarray, inflate: np.nd
     Notes
     -----
     ``d2 = sum_i v_i^2 / (sigma^2 + c gamma_i)`` over the coordinates of the least-squares
-    weights in the directions the samples see well (:func:`~drake_skills.library.prefix.fit_statistic`).
-    The ``n`` coordinates of largest prior variance ``gamma_i`` are summed exactly; each of
-    the others has ``gamma_i`` at most the largest of them, ``gamma_rest``, so together they
-    add at least ``(|v|^2 - sum_top v_i^2) / (sigma^2 + c gamma_rest)``, and ``|v|^2`` is the
-    squared norm of the residual's part in the seen directions, a (K, D, N) product per
-    phase. Neither needs the residuals of the samples: all pairs cost two products instead
-    of the (J, K, m, D) residuals of the exact statistic.
+    weights in the directions the samples see well (:func:`~drake_skills.library.prefix.fit_statistic`),
+    a sum of non-negative terms, so the same sum over the ``n_directions`` coordinates of
+    largest prior variance ``gamma_i`` is a lower bound. (The others weigh more per unit
+    of misfit, but a skill's components differ most where the skills vary most.) Their
+    coordinates need no residual of the samples, ``v = a_j - mu_k^T M_j``: all pairs cost
+    one (K, h) x (h, J n) product instead of the (J, K, m, D) residuals of the exact statistic.
     """
     m, D = ys.shape
     phases = tuple(float(f) for f in phases)
     Phi = _basis_terms(basis, phases, int(m))[0]
-    W, M, gam, seen, Vs, Vg = fit_terms(basis, phases, int(m), chol, D, cache)
-    J, _, N = Phi.shape
-    K, h = means_h.shape[0], D * N
+    W, M, gam, seen = fit_terms(basis, phases, int(m), chol, D, cache)
+    J, h = gam.shape
+    K = means_h.shape[0]
     n = min(int(n_directions), h)
-    Pty = np.matmul(Phi.transpose(0, 2, 1), ys)                                # (J, N, D)
-    Hy = Pty.transpose(0, 2, 1).reshape(J, h)
-    v = np.einsum("jh,jhn->jn", Hy, W[:, :, h - n:])[:, None, :] - np.matmul(means_h, M[:, :, h - n:])
-    c = np.asarray(inflate, float)[None, :, None]
-    top = np.where(seen[:, None, h - n:], v * v, 0.0)
-    bound = np.sum(top / (noise_var + c * gam[:, None, h - n:]), axis=2)          # (J, K)
-    if n < h:
-        b = np.matmul(Vs.transpose(0, 2, 1), Pty).transpose(0, 2, 1)            # (J, D, N): Vs^T Phi^T y_d
-        Am = np.matmul(means_h.reshape(1, K * D, N), Vg).reshape(J, K, D, N)     # Vg^T mu_kd
-        norm2 = np.sum((b[:, None] - Am) ** 2, axis=(2, 3))
-        rest = np.maximum(norm2 - top.sum(axis=2), 0.0)
-        bound += np.where(seen[:, None, h - n - 1], rest / (noise_var + c[..., 0] * gam[:, None, h - n - 1]), 0.0)
+    Hy = np.matmul(Phi.transpose(0, 2, 1), ys).transpose(0, 2, 1).reshape(J, h)   # H y, dimension-major
+    a = np.einsum("jh,jhn->jn", Hy, W[:, :, h - n:])                              # (J, n)
+    Mt = M[:, :, h - n:].transpose(1, 0, 2).reshape(h, J * n)                      # one product for every phase
+    v = a.reshape(1, J * n) - means_h @ Mt                                         # (K, J n)
+    var = noise_var + np.outer(np.asarray(inflate, float), gam[:, h - n:].reshape(-1))
+    terms = np.where(seen[:, h - n:].reshape(1, -1), v * v / var, 0.0)
     dof = np.maximum(seen.sum(axis=1).astype(float), 1e-9)
-    return bound.T, np.broadcast_to(dof[None, :], (K, J)).copy()
+    return terms.reshape(K, J, n).sum(axis=2), np.broadcast_to(dof[None, :], (K, J)).copy()
 
 
 def prefix_candidates(ys: np.ndarray, phases, allowed: np.ndarray, means_h: np.ndarray, inflate: np.ndarray,
