@@ -159,7 +159,7 @@ def fit_statistic(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarra
     v = np.einsum("jh,jhn->jn", Hy, W)[:, None, :] - np.matmul(means_h, M)          # (J, K, h)
     var = noise_var + np.asarray(inflate, float)[None, :, None] * gam[:, None, :]
     d2 = np.sum(np.where(seen[:, None, :], v * v / var, 0.0), axis=2)
-    dof = np.maximum(seen.sum(axis=1).astype(float), 1e-9)
+    dof = seen.sum(axis=1).astype(float)      # at least D: the best-seen direction always counts
     return d2, np.broadcast_to(dof[:, None], d2.shape).copy()
 
 

@@ -69,7 +69,7 @@ def fit_lower_bounds(ys: np.ndarray, phases, means_h: np.ndarray, inflate: np.nd
     v = a.reshape(1, J * n) - means_h @ Mt                                         # (K, J n)
     var = noise_var + np.outer(np.asarray(inflate, float), gam[:, h - n:].reshape(-1))
     terms = np.where(seen[:, h - n:].reshape(1, -1), v * v / var, 0.0)
-    dof = np.maximum(seen.sum(axis=1).astype(float), 1e-9)
+    dof = seen.sum(axis=1).astype(float)
     return terms.reshape(K, J, n).sum(axis=2), np.broadcast_to(dof[None, :], (K, J)).copy()
 
 

@@ -163,7 +163,7 @@ class Recognition:
 
     A motion's beginning recognized without a fraction in a library of more than
     ``PRUNE_MIN_COMPONENTS`` (16) components is scored only against the components a
-    lower bound does not rule out (:func:`~drake_skills.library.prefix.prefix_candidates`);
+    lower bound does not rule out (:func:`~drake_skills.library.prefix_bound.prefix_candidates`);
     the others have log-likelihood -inf, distance inf and responsibility 0 (they
     cannot explain the motion, so the answer is the one scoring all of them gives).
     """
@@ -178,7 +178,8 @@ class Recognition:
     log_likelihoods: np.ndarray
     #: Squared Mahalanobis distance to each component.
     mahalanobis_sq: np.ndarray
-    #: Degrees of freedom of the chi-square test (per component for a prefix).
+    #: Degrees of freedom of the chi-square test (per component for a prefix: D times the directions
+    #: of the weights its samples see well at the component's phase).
     dof: int | np.ndarray
     #: "skill", "undecided" or "unknown".
     status: str = "unknown"

@@ -122,7 +122,8 @@ def prefix_statistics(mean_h, cov_hh, Phi_o, y_obs, noise_var: float, seen_rcond
       (``r`` the residual of the prior mean, ``H r`` stacked per dimension) the misfit has
       covariance ``sigma^2 I + V_g^T Sigma_hh V_g`` with ``V_g = I_D (x) V g^{1/2}``;
       ``d2 = x^T (sigma^2 I + V_g^T Sigma_hh V_g)^{-1} x``;
-    * ``dof``: ``D n``, ``n`` the directions kept per dimension; ``d2`` is exactly
+    * ``dof``: ``D n``, ``n >= 1`` the directions kept per dimension (the best-seen one
+      always is); ``d2`` is exactly
       chi-square with ``dof`` degrees of freedom under the model.
 
     Why not every direction the basis spans (``seen_rcond`` near 0, what this used before,

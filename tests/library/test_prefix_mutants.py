@@ -210,8 +210,29 @@ def test_prefix_candidates_keeps_every_component_that_fits_at_an_allowed_phase_a
     expect = ((bound <= chi2_ppf(0.999, bdof)) & allowed[:, 8:16]).any(axis=1)
     np.testing.assert_array_equal(keep, expect)
     assert keep[:2].all() and not keep[4:].any(), keep
-    assert not prefix_bound.prefix_candidates(y, GRID, np.zeros((6, 20), bool), means, inflate, chol, basis,
-                                              noise, 0.999).any()
+    none = prefix_bound.prefix_candidates(y, GRID, np.zeros((6, 20), bool), means, inflate, chol, basis, noise, 0.999)
+    assert none.dtype == bool and none.shape == (6,) and not none.any()
+
+
+def test_the_bound_and_the_scores_share_the_callers_cache():
+    """prefix_candidates, fit_lower_bounds, score_prefix and score_at_phase keep their decompositions in the cache
+    passed (the library's, emptied when it learns): the per-phase maps once, the stacked set reused as is."""
+    y, means, inflate, chol, basis, S = _problem(9, K=3, m=30)
+    allowed = np.zeros((3, 20), bool)
+    allowed[:, 8:12] = True
+    cache: dict = {}
+    prefix_bound.prefix_candidates(y, GRID, allowed, means, inflate, chol, basis, 0.03, 0.999, cache)
+    assert set(cache["fit"]["phase"]) == {(f, 30) for f in GRID[8:12]}
+    first = prefix.fit_terms(basis, tuple(GRID[8:12]), 30, chol, 3, cache)
+    again = prefix.fit_terms(basis, tuple(GRID[8:12]), 30, chol, 3, cache)
+    assert all(a is b for a, b in zip(first, again))             # the stacked entry, not a new stack
+    cache2: dict = {}
+    prefix_bound.fit_lower_bounds(y, (0.4,), means, inflate, chol, basis, 0.03, cache2)
+    assert set(cache2["fit"]["phase"]) == {(0.4, 30)}
+    cache3: dict = {}
+    score_prefix(y, np.array([0.5, 0.5, 0.5]), means, inflate, chol, basis, 0.03, cache3)
+    score_at_phase(y, 0.95, means, inflate, chol, basis, 0.03, cache3)
+    assert (0.95, 30) in cache3["gram"]["phase"] and (0.5, 30) in cache3["fit"]["phase"]
 
 
 @pytest.mark.parametrize("excess, kept", [(1e-9, True), (1e-3, False)])
