@@ -29,12 +29,11 @@ from drake_skills.data.synthetic import skill_bank
 from drake_skills.data.workspace import Workspace
 from drake_skills.evaluation.interaction import (InteractionContext, InteractionSettings, default_data_path,
                                                  evaluate_interaction, replay_commits)
-from drake_skills.library import prefix
+from drake_skills.promp import interaction
 
 
 def _set_share(share: float) -> None:
-    prefix.SEEN_RCOND = share
-    prefix._seen_directions.cache_clear()
+    interaction.SEEN_RCOND = share        # read at each call; every measurement builds new libraries
 
 
 def _internal_validation(orders: int):
@@ -83,7 +82,7 @@ def main(argv=None) -> int:
     ap.add_argument("--orders", type=int, default=6, help="random orders per draw (default: %(default)s)")
     ap.add_argument("--banks", type=int, default=24, help="synthetic skill banks (default: %(default)s)")
     args = ap.parse_args(argv)
-    default = prefix.SEEN_RCOND
+    default = interaction.SEEN_RCOND
     try:
         for share in (float(x) for x in args.shares.split(",")):
             _set_share(share)

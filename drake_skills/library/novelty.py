@@ -21,7 +21,7 @@ Two forms, chosen by ``LibraryConfig.novelty_test`` in :func:`novelty_rule`:
 
 * :class:`Chi2Rule` (default, scale free): thresholds are chi-square quantiles with as
   many degrees of freedom as gating weights (a whole motion), or as the directions a
-  beginning's samples span, ``D rank(Phi)`` (recognition from a prefix).
+  beginning's samples see well (recognition from a prefix; ``promp.interaction.prefix_statistics``).
 * :class:`LogLikRule`, the paper's literal test on ``log p`` (``log_T_nov``,
   ``log_T_merge``); its settings depend on the dimension. Splits use the chi-square
   quantile in both forms.

@@ -18,7 +18,8 @@ per phase serves all components: with ``Sigma = L L^T`` and ``L^T G L = Q Lambda
 so a recognition costs one ``h x h`` eigendecomposition per phase of the grid plus
 O(K h) per phase, not O(K h^3). The fit statistic is the chi-square statistic of the
 least-squares weights the samples give in the directions they see well (eigenvalues of
-``Phi^T Phi`` at least :data:`SEEN_RCOND` of the largest, ``n`` per dimension): with
+``Phi^T Phi`` at least :data:`~drake_skills.promp.interaction.SEEN_RCOND` of the largest, ``n`` per
+dimension; read at each call, so a changed share needs new libraries' caches): with
 those directions ``V``, their eigenvalues ``g`` and ``B = V_g^T Sigma V_g``
 (``V_g = I_D (x) V g^{1/2}``) ``= R Gamma R^T``, the coordinates
 ``v_k = R^T (I_D (x) g^{-1/2} V^T H y - V_g^T mu_k)`` have variances ``sigma^2 + c gamma_i``,
@@ -44,7 +45,7 @@ import numpy as np
 from drake_skills.library.bounded import put_bounded
 from drake_skills.promp.basis import GaussianBasis
 from drake_skills.promp.gaussian import logsumexp
-from drake_skills.promp.interaction import SEEN_RCOND
+from drake_skills.promp import interaction
 
 _LOG_2PI = np.log(2.0 * np.pi)
 #: Phases tried: 1/20 ... 1 in steps of 1/20.
@@ -73,6 +74,8 @@ def _basis_terms(basis: GaussianBasis, phases: tuple, m: int):
 #: Stacked eigendecompositions kept per cache for whole phase sets (the sets a controller
 #: meets recur: the same few bands and prefix sizes), besides the one entry per phase.
 _STACKED_ENTRIES = 64
+#: Entries kept per cache for single phases (the 20 grid phases at a dozen prefix sizes fit).
+_PHASE_ENTRIES = 512
 
 
 def _whitened_gram(PtP: np.ndarray, chol: np.ndarray, D: int):
@@ -123,7 +126,7 @@ def score_phases(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarray
     """
     m, D = y.shape
     phases = tuple(float(f) for f in phases)
-    Phi, PtP = _basis_terms(basis, phases, int(m))
+    Phi = _basis_terms(basis, phases, int(m))[0]
     lam, Q = _per_phase(cache, "gram", phases, int(m), lambda fs: _whitened_gram(_basis_terms(basis, fs, int(m))[1],
                                                                                   chol, D))
     J, _, N = Phi.shape
@@ -152,15 +155,28 @@ def fit_statistic(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarra
     """
     m, D = y.shape
     phases = tuple(float(f) for f in phases)
-    Phi = _basis_terms(basis, phases, int(m))[0]
     W, M, gam, seen = fit_terms(basis, phases, int(m), chol, D, cache)
-    J, _, N = Phi.shape
-    Hy = np.matmul(Phi.transpose(0, 2, 1), y).transpose(0, 2, 1).reshape(J, D * N)   # H y, dimension-major
-    v = np.einsum("jh,jhn->jn", Hy, W)[:, None, :] - np.matmul(means_h, M)          # (J, K, h)
+    v = coordinates(y, phases, means_h, W, M, basis)                            # (J, K, h)
     var = noise_var + np.asarray(inflate, float)[None, :, None] * gam[:, None, :]
-    d2 = np.sum(np.where(seen[:, None, :], v * v / var, 0.0), axis=2)
+    d2 = np.sum(v * v / var, axis=2)          # the padding's columns are 0 in v (zero maps), var sigma^2 there
     dof = seen.sum(axis=1).astype(float)      # at least D: the best-seen direction always counts
     return d2, np.broadcast_to(dof[:, None], d2.shape).copy()
+
+
+def coordinates(y: np.ndarray, phases: tuple, means_h: np.ndarray, W: np.ndarray, M: np.ndarray,
+                basis: GaussianBasis) -> np.ndarray:
+    """The misfit's coordinates ``v = W_j^T H_j y - M_j^T mu_k`` of every component, shape (J, K, n).
+
+    ``W``, ``M`` (J, h, n): :func:`fit_terms`' maps, all their columns or some of them.
+    """
+    m, D = y.shape
+    Phi = _basis_terms(basis, tuple(phases), int(m))[0]
+    J, _, N = Phi.shape
+    Hy = np.matmul(Phi.transpose(0, 2, 1), y).transpose(0, 2, 1).reshape(J, D * N)   # H y, dimension-major
+    n = W.shape[2]
+    Mt = M.transpose(1, 0, 2).reshape(D * N, J * n)                                 # one product for every phase
+    v = np.einsum("jh,jhn->jn", Hy, W).reshape(1, J * n) - means_h @ Mt
+    return v.reshape(-1, J, n).transpose(1, 0, 2)
 
 
 def fit_terms(basis: GaussianBasis, phases: tuple, m: int, chol: np.ndarray, D: int, cache: dict | None = None):
@@ -179,14 +195,21 @@ def fit_terms(basis: GaussianBasis, phases: tuple, m: int, chol: np.ndarray, D: 
     return _per_phase(cache, "fit", tuple(phases), int(m), lambda fs: _fit_terms(basis, fs, int(m), chol, D))
 
 
-def _fit_terms(basis: GaussianBasis, phases: tuple, m: int, chol: np.ndarray, D: int):
-    """:func:`fit_terms`, computed (one batched eigendecomposition per number of directions seen)."""
+def _fit_terms(basis: GaussianBasis, phases: tuple, m: int, chol: np.ndarray, D: int, most: int | None = None):
+    """:func:`fit_terms`, computed (one batched eigendecomposition per number of directions seen).
+
+    ``most``: keep only the ``most`` best-seen directions of each dimension (the columns are
+    then ``D most`` wide; :mod:`~drake_skills.library.prefix_bound`).
+    """
     N = basis.n_basis
     h = D * N
     J = len(phases)
-    W, M = np.zeros((J, h, h)), np.zeros((J, h, h))
-    gam, seen = np.zeros((J, h)), np.zeros((J, h), bool)
-    dirs = [_seen_directions(basis, f, m) for f in phases]
+    width = h if most is None else D * min(int(most), N)
+    W, M = np.zeros((J, h, width)), np.zeros((J, h, width))
+    gam, seen = np.zeros((J, width)), np.zeros((J, width), bool)
+    dirs = [_seen_directions(basis, f, m, interaction.SEEN_RCOND) for f in phases]
+    if most is not None:                                             # eigenvalues ascending: the last are best seen
+        dirs = [(V[:, max(g.size - int(most), 0):], g[max(g.size - int(most), 0):]) for V, g in dirs]
     for n in sorted({g.size for _, g in dirs}):
         js = [j for j, (_, g) in enumerate(dirs) if g.size == n]
         V = np.stack([dirs[j][0] for j in js])                       # (G, N, n)
@@ -199,39 +222,50 @@ def _fit_terms(basis: GaussianBasis, phases: tuple, m: int, chol: np.ndarray, D:
         B = np.matmul(LV.transpose(0, 2, 1), LV)                     # Vg^T Sigma Vg
         gj, R = np.linalg.eigh(0.5 * (B + B.transpose(0, 2, 1)))     # ascending
         k = D * n
-        W[js, :, h - k:] = np.matmul(Vs, R)
-        M[js, :, h - k:] = np.matmul(Vg, R)
-        gam[js, h - k:] = np.clip(gj, 0.0, None)
-        seen[js, h - k:] = True
+        W[js, :, width - k:] = np.matmul(Vs, R)
+        M[js, :, width - k:] = np.matmul(Vg, R)
+        gam[js, width - k:] = np.clip(gj, 0.0, None)
+        seen[js, width - k:] = True
+    for a in (W, M, gam, seen):
+        a.setflags(write=False)
     return W, M, gam, seen
 
 
 @lru_cache(maxsize=2048)
-def _seen_directions(basis: GaussianBasis, f: float, m: int):
-    """Eigenvectors (N, n) and eigenvalues (n,) of ``Phi^T Phi`` at least :data:`SEEN_RCOND` of the largest (cached)."""
+def _seen_directions(basis: GaussianBasis, f: float, m: int, rcond: float):
+    """Eigenvectors (N, n) and eigenvalues (n,) of ``Phi^T Phi`` at least ``rcond`` of the largest (cached)."""
     g, V = np.linalg.eigh(_basis_at(basis, f, m)[1])
-    keep = g >= SEEN_RCOND * g[-1]
-    return V[:, keep], g[keep]
+    keep = g >= rcond * g[-1]
+    out = np.ascontiguousarray(V[:, keep]), g[keep].copy()
+    for a in out:
+        a.setflags(write=False)
+    return out
 
 
 def _per_phase(cache: dict | None, kind: str, phases: tuple, m: int, compute):
     """``compute(phases)`` (a tuple of arrays stacked over the phases), kept per phase and per phase set in ``cache``.
 
-    ``cache[kind]`` holds one entry per ``(phase, m)`` (the phases recur; the sets asked
-    for vary) and the last :data:`_STACKED_ENTRIES` stacked sets; ``compute`` is called
-    for the phases missing only.
+    ``cache[kind]`` holds the last :data:`_PHASE_ENTRIES` entries per ``(phase, m)`` (the
+    phases recur; the sets asked for vary; a caller streaming arbitrary fixed fractions
+    would otherwise grow it without end) and the last :data:`_STACKED_ENTRIES` stacked
+    sets; ``compute`` is called for the phases missing only.
     """
     if cache is None:
         return compute(phases)
-    store = cache.setdefault(kind, {"stacked": OrderedDict(), "phase": {}})
+    store = cache.setdefault(kind, {"stacked": OrderedDict(), "phase": OrderedDict()})
     hit = store["stacked"].get((phases, m))
     if hit is None:
-        missing = tuple(f for f in phases if (f, m) not in store["phase"])
+        # read each entry once into a local dict: another thread (or this call) may evict it
+        got = {f: store["phase"].get((f, m)) for f in phases}
+        missing = tuple(f for f in phases if got[f] is None)
         if missing:
             parts = compute(missing)
             for i, f in enumerate(missing):
-                store["phase"][(f, m)] = tuple(p[i] for p in parts)
-        hit = tuple(np.stack(a) for a in zip(*(store["phase"][(f, m)] for f in phases)))
+                got[f] = tuple(p[i] for p in parts)
+                put_bounded(store["phase"], (f, m), got[f], _PHASE_ENTRIES)
+        hit = tuple(np.stack(a) for a in zip(*(got[f] for f in phases)))
+        for a in hit:
+            a.setflags(write=False)
         put_bounded(store["stacked"], (phases, m), hit, _STACKED_ENTRIES)
     return hit
 

@@ -5,7 +5,7 @@ motion against every component at every phase of its band: for a library of a
 thousand components that is most of the cost of recognizing a prefix (the residuals of
 all samples against every component's mean at every phase), and almost all of those
 components cannot explain the samples at all. :func:`prefix_candidates` rules them out
-with a lower bound on the fit statistic ``d2`` that skips the samples altogether (see
+with a lower bound on the fit statistic ``d2`` that needs no residuals of the samples (see
 :func:`fit_lower_bounds`); only the others are scored. The recognition is the same as
 scoring every component (``tests/library/test_scale.py`` checks both the bound against
 the exact ``d2`` and the answers against scoring all components).
@@ -15,11 +15,12 @@ from __future__ import annotations
 import numpy as np
 
 from drake_skills.library.novelty import chi2_ppf
-from drake_skills.library.prefix import _basis_terms, fit_terms
+from drake_skills.library.prefix import _fit_terms, _per_phase, _seen_directions, coordinates
+from drake_skills.promp import interaction
 from drake_skills.promp.basis import GaussianBasis
 
-#: Coordinates per phase whose terms the bound sums exactly: those of largest prior variance.
-N_DIRECTIONS = 4
+#: Directions per dimension the bound looks at: the ones the samples see best.
+N_DIRECTIONS = 2
 #: Relative allowance for rounding when a bound is compared with a threshold (the bound and
 #: the exact statistic compute the same misfit coordinates by different products).
 ROUNDING = 1e-6
@@ -36,10 +37,10 @@ def fit_lower_bounds(ys: np.ndarray, phases, means_h: np.ndarray, inflate: np.nd
         The observed samples, evenly spaced over ``[0, phase]``.
     phases : sequence of float, length J
     means_h, inflate, chol, basis, noise_var, cache
-        As :func:`~drake_skills.library.prefix.score_phases` (``cache`` shares its
-        decompositions).
+        As :func:`~drake_skills.library.prefix.score_phases` (``cache`` keeps this bound's
+        decompositions beside the statistic's).
     n_directions : int
-        Coordinates summed per phase.
+        Directions per dimension looked at (all the seen ones: the bound is ``d2``).
 
     Returns
     -------
@@ -48,29 +49,25 @@ def fit_lower_bounds(ys: np.ndarray, phases, means_h: np.ndarray, inflate: np.nd
 
     Notes
     -----
-    ``d2 = sum_i v_i^2 / (sigma^2 + c gamma_i)`` over the coordinates of the least-squares
-    weights in the directions the samples see well (:func:`~drake_skills.library.prefix.fit_statistic`),
-    a sum of non-negative terms, so the same sum over the ``n_directions`` coordinates of
-    largest prior variance ``gamma_i`` is a lower bound. (The others weigh more per unit
-    of misfit, but a skill's components differ most where the skills vary most.) Their
-    coordinates need no residual of the samples, ``v = a_j - mu_k^T M_j``: all pairs cost
-    one (K, h) x (h, J n) product instead of the (J, K, m, D) residuals of the exact statistic.
+    ``d2 = x^T C^{-1} x`` is the Mahalanobis distance of the coordinates ``x`` of the
+    least-squares weights in the directions the samples see well, with covariance
+    ``C = sigma^2 I + c V_g^T Sigma V_g`` (:func:`~drake_skills.promp.interaction.prefix_statistics`).
+    The Mahalanobis distance of a sub-vector of ``x`` under its own block of ``C`` never
+    exceeds that of the whole, so the ``n_directions`` best-seen directions of each
+    dimension give a lower bound, and their block is ``D n_directions`` square: one small
+    eigendecomposition per phase for all components, no residuals of the samples, and one
+    (K, h) x (h, J D n) product for all pairs.
     """
     m, D = ys.shape
     phases = tuple(float(f) for f in phases)
-    Phi = _basis_terms(basis, phases, int(m))[0]
-    W, M, gam, seen = fit_terms(basis, phases, int(m), chol, D, cache)
-    J, h = gam.shape
-    K = means_h.shape[0]
-    n = min(int(n_directions), h)
-    Hy = np.matmul(Phi.transpose(0, 2, 1), ys).transpose(0, 2, 1).reshape(J, h)   # H y, dimension-major
-    a = np.einsum("jh,jhn->jn", Hy, W[:, :, h - n:])                              # (J, n)
-    Mt = M[:, :, h - n:].transpose(1, 0, 2).reshape(h, J * n)                      # one product for every phase
-    v = a.reshape(1, J * n) - means_h @ Mt                                         # (K, J n)
-    var = noise_var + np.outer(np.asarray(inflate, float), gam[:, h - n:].reshape(-1))
-    terms = np.where(seen[:, h - n:].reshape(1, -1), v * v / var, 0.0)
-    dof = seen.sum(axis=1).astype(float)
-    return terms.reshape(K, J, n).sum(axis=2), np.broadcast_to(dof[None, :], (K, J)).copy()
+    s = max(1, int(n_directions))
+    W, M, gam, _ = _per_phase(cache, f"bound{s}", phases, int(m),
+                              lambda fs: _fit_terms(basis, fs, int(m), chol, D, s))
+    v = coordinates(ys, phases, means_h, W, M, basis)                                     # (J, K, D s)
+    var = noise_var + np.asarray(inflate, float)[None, :, None] * gam[:, None, :]
+    bound = np.sum(v * v / var, axis=2).T        # (K, J); the padding's columns are 0 in v (zero maps)
+    dof = np.array([D * _seen_directions(basis, f, int(m), interaction.SEEN_RCOND)[1].size for f in phases], float)
+    return bound, np.broadcast_to(dof[None, :], bound.shape).copy()
 
 
 def prefix_candidates(ys: np.ndarray, phases, allowed: np.ndarray, means_h: np.ndarray, inflate: np.ndarray,

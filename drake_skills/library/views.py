@@ -179,7 +179,8 @@ class Recognition:
     #: Squared Mahalanobis distance to each component.
     mahalanobis_sq: np.ndarray
     #: Degrees of freedom of the chi-square test (per component for a prefix: D times the directions
-    #: of the weights its samples see well at the component's phase).
+    #: of the weights its samples see well at the component's phase; ``n_human`` for a component the
+    #: pruning bound ruled out).
     dof: int | np.ndarray
     #: "skill", "undecided" or "unknown".
     status: str = "unknown"

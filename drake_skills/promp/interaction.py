@@ -102,13 +102,14 @@ def observation_log_likelihood(mean_h, cov_hh, Phi_o, y_obs, noise_var: float):
 #: path: 0.59 / 0.67 / 0.60 with every spanned direction, 0.67 / 0.88 / 0.96 at 1e-3, 0.80 /
 #: 0.93 / 1.0 at 2e-3 and 3e-3, 0.84 / 0.93 / 1.0 at 0.01-0.1) under the constraint that
 #: beginnings of untaught synthetic skills are committed to no more often than with every
-#: direction (3 of 24 banks; 2 at 1e-3 and 2e-3, 4 at 3e-3, 6 at 0.01, 12 at 0.03 of 18).
+#: direction (3 of 24 banks; 2 at 1e-3 and 2e-3, 4 at 3e-3, 7 at 0.01, 18 at 0.03;
+#: ``benchmarks/seen_rcond.py``).
 #: With the default basis a whole motion keeps 6 of 7 directions per dimension, half of
 #: one 4, a tenth 2.
 SEEN_RCOND = 2e-3
 
 
-def prefix_statistics(mean_h, cov_hh, Phi_o, y_obs, noise_var: float, seen_rcond: float = SEEN_RCOND):
+def prefix_statistics(mean_h, cov_hh, Phi_o, y_obs, noise_var: float, seen_rcond: float | None = None):
     """Marginal likelihood of observed human samples, and a chi-square statistic of their fit.
 
     Under ``vec(y) ~ N(H^T mu_h, sigma^2 I + H^T Sigma_hh H)``:
@@ -137,6 +138,10 @@ def prefix_statistics(mean_h, cov_hh, Phi_o, y_obs, noise_var: float, seen_rcond
     variance exceeds the noise's would drop those too, but it tests nothing for a skill
     tighter than the noise, whatever the samples.
 
+    ``seen_rcond``: the share (default :data:`SEEN_RCOND`, read at the call). "Exact under
+    the model" is at the phase and sample count given; recognition chooses the phase per
+    component from the samples, as before.
+
     Returns
     -------
     loglik : float
@@ -154,7 +159,7 @@ def prefix_statistics(mean_h, cov_hh, Phi_o, y_obs, noise_var: float, seen_rcond
     loglik = -0.5 * (m * (_LOG_2PI + np.log(noise_var)) + logdet + d2_obs)
     D = y_obs.shape[1]
     g, V = np.linalg.eigh(Phi_o.T @ Phi_o)
-    keep = g >= seen_rcond * g[-1]
+    keep = g >= (SEEN_RCOND if seen_rcond is None else seen_rcond) * g[-1]
     g, V = g[keep], V[:, keep]
     x = np.kron(np.eye(D), V / np.sqrt(g)).T @ u
     Vg = np.kron(np.eye(D), V * np.sqrt(g))

@@ -62,8 +62,7 @@ def test_score_phases_equals_prefix_statistics_for_every_component_and_phase(cas
         got = np.array(score_phases(y, phases, means, inflate, chol, basis, noise, cache))
         ref = _reference(y, phases, means, inflate, S, basis, noise)
         np.testing.assert_allclose(got[0], ref[0], rtol=1e-9, atol=1e-8)
-        # d2 is a difference of two terms: 1e-5 for the ill-conditioned wide basis (width 2.5, 3e-6 seen)
-        np.testing.assert_allclose(got[1], ref[1], rtol=1e-5, atol=1e-7)
+        np.testing.assert_allclose(got[1], ref[1], rtol=1e-9, atol=1e-9)      # 2e-13 seen
         np.testing.assert_array_equal(got[2], ref[2])
     if cached:
         assert set(cache) == {"gram", "fit"}
@@ -171,22 +170,33 @@ def test_the_lower_bound_lies_below_the_exact_fit_statistic_and_equals_it_over_a
 
 
 @pytest.mark.parametrize("cached", [False, True])
-def test_the_bound_sums_the_terms_of_the_coordinates_of_largest_prior_variance(cached):
-    """v_i^2 / (sigma^2 + c gamma_i) over the n largest gamma_i, written out with explicit matrices (n = 1, 4, 9,
-    all); fewer seen coordinates than n: all of them, exactly d2."""
+def test_the_bound_is_the_mahalanobis_distance_of_the_best_seen_directions(cached):
+    """x_S^T (sigma^2 I + c Vg_S^T Sigma Vg_S)^-1 x_S over the n best-seen eigenvectors V_S of Phi^T Phi per dimension,
+    x_S = (I (x) g_S^-1/2 V_S^T) H r, written out with explicit matrices (n = 1, 2; with 7, all the seen ones: d2)."""
     y, means, inflate, chol, basis, S = _problem(0, K=3, m=30, spread=3.0)
     phases = (0.1, 0.6, 1.0)
     cache = {} if cached else None
     noise = 0.03
-    for n in (1, 4, 9, 18):
+    m, D = y.shape
+    for n in (1, 2, 7):
         got, _ = prefix_bound.fit_lower_bounds(y, phases, means, inflate, chol, basis, noise, cache, n_directions=n)
         for j, f in enumerate(phases):
+            Phi = basis.phi(np.linspace(0.0, f, m))
+            g, V = np.linalg.eigh(Phi.T @ Phi)
+            keep = np.flatnonzero(g >= SEEN_RCOND * g[-1])[-n:]
+            HT = np.kron(np.eye(D), Phi)
+            Vs = np.kron(np.eye(D), V[:, keep] / np.sqrt(g[keep]))
+            Vg = np.kron(np.eye(D), V[:, keep] * np.sqrt(g[keep]))
             for k in range(3):
-                gam, v = _terms(y, f, means[k], chol, basis)
-                top = slice(max(gam.size - n, 0), None)
-                expect = np.sum(v[top] ** 2 / (noise + inflate[k] * gam[top]))
-                assert got[k, j] == pytest.approx(expect, rel=1e-7, abs=1e-9)
-    assert 4 < _terms(y, 0.1, means[0], chol, basis)[0].size < 9 < _terms(y, 1.0, means[0], chol, basis)[0].size
+                x = Vs.T @ HT.T @ (y.T.reshape(-1) - HT @ means[k])
+                C = noise * np.eye(x.size) + inflate[k] * Vg.T @ S @ Vg
+                assert got[k, j] == pytest.approx(float(x @ np.linalg.solve(C, x)), rel=1e-8, abs=1e-9)
+    _, d2, _ = score_phases(y, phases, means, inflate, chol, basis, noise)
+    np.testing.assert_allclose(got, d2.T, rtol=1e-8, atol=1e-9)                        # n = 7: every seen direction
+    counts = [np.sum(np.linalg.eigvalsh(basis.phi(np.linspace(0, f, m)).T @ basis.phi(np.linspace(0, f, m)))
+                     >= SEEN_RCOND * np.linalg.eigvalsh(basis.phi(np.linspace(0, f, m)).T @ basis.phi(
+                         np.linspace(0, f, m)))[-1]) for f in phases]
+    assert min(counts) <= 2 < max(counts)                                               # fewer and more than n
 
 
 def test_prefix_candidates_keeps_every_component_that_fits_at_an_allowed_phase_and_rules_out_the_others():
@@ -216,19 +226,21 @@ def test_prefix_candidates_keeps_every_component_that_fits_at_an_allowed_phase_a
 
 def test_the_bound_and_the_scores_share_the_callers_cache():
     """prefix_candidates, fit_lower_bounds, score_prefix and score_at_phase keep their decompositions in the cache
-    passed (the library's, emptied when it learns): the per-phase maps once, the stacked set reused as is."""
+    passed (the library's, emptied when it learns; the bound's beside the statistic's): the per-phase maps once,
+    the stacked set reused as is."""
     y, means, inflate, chol, basis, S = _problem(9, K=3, m=30)
     allowed = np.zeros((3, 20), bool)
     allowed[:, 8:12] = True
     cache: dict = {}
     prefix_bound.prefix_candidates(y, GRID, allowed, means, inflate, chol, basis, 0.03, 0.999, cache)
-    assert set(cache["fit"]["phase"]) == {(f, 30) for f in GRID[8:12]}
+    assert set(cache["bound2"]["phase"]) == {(f, 30) for f in GRID[8:12]}
+    score_phases(y, tuple(GRID[8:12]), means, inflate, chol, basis, 0.03, cache)
     first = prefix.fit_terms(basis, tuple(GRID[8:12]), 30, chol, 3, cache)
     again = prefix.fit_terms(basis, tuple(GRID[8:12]), 30, chol, 3, cache)
     assert all(a is b for a, b in zip(first, again))             # the stacked entry, not a new stack
     cache2: dict = {}
     prefix_bound.fit_lower_bounds(y, (0.4,), means, inflate, chol, basis, 0.03, cache2)
-    assert set(cache2["fit"]["phase"]) == {(0.4, 30)}
+    assert set(cache2["bound2"]["phase"]) == {(0.4, 30)}
     cache3: dict = {}
     score_prefix(y, np.array([0.5, 0.5, 0.5]), means, inflate, chol, basis, 0.03, cache3)
     score_at_phase(y, 0.95, means, inflate, chol, basis, 0.03, cache3)
@@ -237,29 +249,29 @@ def test_the_bound_and_the_scores_share_the_callers_cache():
 
 @pytest.mark.parametrize("excess, kept", [(1e-9, True), (1e-3, False)])
 def test_prefix_candidates_allows_for_rounding_at_the_threshold(excess, kept):
-    """One dimension at phase 0.5 sees at most 4 directions, so the 4-coordinate bound is the exact statistic: samples moved
-    along the coordinate of largest prior variance until d2 is the threshold times (1 + excess): kept at 1e-9 above
+    """One dimension at phase 0.2 sees 2 directions, so the bound (2 per dimension) is the exact statistic: samples
+    moved along the coordinate of largest prior variance until d2 is the threshold times (1 + excess): kept at 1e-9 above
     it (the bound, computed by other products, may round above d2 by far less than 1e-6 relative), ruled out at
     1e-3 above."""
     from drake_skills.library.novelty import chi2_ppf
 
     y, means, inflate, chol, basis, S = _problem(3, D=1, N=6, K=1, m=20, spread=0.0)
-    y = basis.phi(np.linspace(0.0, 0.5, 20)) @ means[0][:, None]     # on the mean: every coordinate 0
+    y = basis.phi(np.linspace(0.0, 0.2, 20)) @ means[0][:, None]     # on the mean: every coordinate 0
     noise = 0.03
     allowed = np.zeros((1, 20), bool)
-    allowed[0, 9] = True                 # phase 0.5
-    _, _, dof = score_phases(y, (0.5,), means, inflate, chol, basis, noise)
-    assert dof[0, 0] <= prefix_bound.N_DIRECTIONS
+    allowed[0, 3] = True                 # phase 0.2
+    _, _, dof = score_phases(y, (0.2,), means, inflate, chol, basis, noise)
+    assert dof[0, 0] == prefix_bound.N_DIRECTIONS == 2
     thr = chi2_ppf(0.999, dof[0, 0])
-    gam, v = _terms(y, 0.5, means[0], chol, basis)
+    gam, v = _terms(y, 0.2, means[0], chol, basis)
     rest = np.sum(v[:-1] ** 2 / (noise + inflate[0] * gam[:-1]))
     assert np.abs(v).max() < 1e-9
     # the gradient of the top coordinate with respect to the samples (linear in them; orthogonal to the others')
-    dy = np.array([_terms(y + e[:, None], 0.5, means[0], chol, basis)[1][-1] - v[-1] for e in np.eye(20)])
+    dy = np.array([_terms(y + e[:, None], 0.2, means[0], chol, basis)[1][-1] - v[-1] for e in np.eye(20)])
     target = thr * (1 + excess)
     t = np.sqrt((target - rest) * (noise + inflate[0] * gam[-1])) - v[-1]
     y2 = y + (t * dy / (dy @ dy))[:, None]
-    _, d2, _ = score_phases(y2, (0.5,), means, inflate, chol, basis, noise)
+    _, d2, _ = score_phases(y2, (0.2,), means, inflate, chol, basis, noise)
     assert d2[0, 0] == pytest.approx(target, rel=1e-10)
     assert prefix_bound.prefix_candidates(y2, GRID, allowed, means, inflate, chol, basis, noise, 0.999).tolist() \
         == [kept]

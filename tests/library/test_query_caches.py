@@ -205,3 +205,20 @@ def test_a_robot_covariance_cached_for_another_cluster_at_the_same_id_is_not_use
     mean2, cov2 = lib.predict_robot(human, observed_fraction=1.0)
     np.testing.assert_allclose(mean2, mean, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(cov2, cov, rtol=1e-12, atol=1e-12)
+
+
+def test_a_library_that_learns_answers_a_beginning_from_new_caches():
+    """Recognize a beginning (the prefix caches fill), learn 4 more demonstrations, recognize it again: the
+    statistics equal those of a library restored from the state (no cache at all), not the old ones."""
+    lib, rng = _lib()
+    probe = synthetic_demo(1, rng).human[:45]
+    before = lib.recognize(probe)
+    for k in range(4):
+        lib.partial_fit(synthetic_demo(k % 2, rng))     # taught skills: the same components, the same sizes
+    after = lib.recognize(probe)
+    fresh = SkillLibrary.from_state(lib.state()).recognize(probe)
+    np.testing.assert_allclose(after.mahalanobis_sq, fresh.mahalanobis_sq, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(after.log_likelihoods, fresh.log_likelihoods, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(after.posterior, fresh.posterior, rtol=0, atol=1e-12)
+    assert len(before.ids) == len(after.ids) and not np.allclose(before.mahalanobis_sq, after.mahalanobis_sq,
+                                                                   rtol=1e-6)

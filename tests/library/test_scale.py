@@ -165,6 +165,27 @@ def test_pruned_prefix_recognition_answers_as_brute_force_and_scores_few_compone
     assert np.median(n_scored) <= 5, n_scored
 
 
+def test_pruning_under_a_strong_ridge_gives_the_unpruned_answers(monkeypatch):
+    """ridge 0.1: beginnings are scored against the ridge undone (S^-1 mu), and the bound must see the same model
+    (fed the ridge's means it rules out the right component): 40 skills, 60 beginnings and whole motions, every
+    status and component the unpruned one, posteriors within 1e-9."""
+    bank, demos, rng = _stream(40, "random", seed=5)
+    lib = SkillLibrary(LibraryConfig(ridge=0.1))
+    for d in demos:
+        lib.partial_fit(d)
+    assert lib.n_components > recognition.PRUNE_MIN_COMPONENTS
+    probes = _probes(bank, rng, n=30)
+    pruned = [lib.recognize(h) for h in probes]
+    monkeypatch.setattr(recognition, "PRUNE_MIN_COMPONENTS", 10 ** 9)
+    skills = 0
+    for h, a in zip(probes, pruned):
+        b = lib.recognize(h)
+        assert (a.status, a.component) == (b.status, b.component)
+        np.testing.assert_allclose(a.posterior, b.posterior, rtol=0, atol=1e-9)
+        skills += a.status == "skill"
+    assert skills >= 40, skills
+
+
 @pytest.mark.parametrize("prune", [False, True])
 def test_recognize_answers_as_the_reference_on_letters_with_undecided_answers(letters, prune, monkeypatch):
     """Letters: big fit residuals and close skills; with the pruning forced on, still the reference's answers."""

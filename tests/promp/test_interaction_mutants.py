@@ -1,7 +1,8 @@
 """Interaction ProMPs: the behaviours `make mutate` found untested (issue 20).
 
-The prefix statistic's dof is exactly ``D * rank(Phi_o)`` (an integer, however few
-samples); ``predict_robot`` without phases says what is wrong with its samples.
+The prefix statistic's dof is exactly D times the directions the samples see well (an
+integer, however few samples), its d2 the Mahalanobis distance of the least-squares weights
+in them; ``predict_robot`` without phases says what is wrong with its samples.
 """
 import numpy as np
 import pytest
