@@ -298,3 +298,21 @@ def test_prefix_candidates_keeps_a_tight_skill_whose_samples_hold_much_the_basis
     assert fits.tolist() == [True, False, False]
     keep = prefix_bound.prefix_candidates(y, GRID, allowed, means, inflate, chol, basis, noise, 0.999)
     assert keep.tolist() == [True, False, False]
+
+
+def test_the_per_phase_cache_computes_each_phase_once_and_hands_out_read_only_arrays():
+    """A second phase set sharing phases with the first asks only for the new ones; what the cache hands out cannot
+    be written (a caller's in-place change would corrupt every later recognition)."""
+    y, means, inflate, chol, basis, S = _problem(9, K=2, m=20)
+    asked = []
+
+    def compute(fs):
+        asked.append(fs)
+        return prefix._fit_terms(basis, fs, 20, chol, 3)
+
+    cache: dict = {}
+    first = prefix._per_phase(cache, "fit", (0.2, 0.4), 20, compute)
+    prefix._per_phase(cache, "fit", (0.4, 0.6), 20, compute)
+    assert asked == [(0.2, 0.4), (0.6,)]
+    for a in first + prefix._fit_terms(basis, (0.3,), 20, chol, 3):
+        assert not a.flags.writeable
