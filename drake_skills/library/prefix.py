@@ -179,8 +179,12 @@ def coordinates(y: np.ndarray, phases: tuple, means_h: np.ndarray, W: np.ndarray
     return v.reshape(-1, J, n).transpose(1, 0, 2)
 
 
-def fit_terms(basis: GaussianBasis, phases: tuple, m: int, chol: np.ndarray, D: int, cache: dict | None = None):
+def fit_terms(basis: GaussianBasis, phases: tuple, m: int, chol: np.ndarray, D: int, cache: dict | None = None,
+              most: int | None = None):
     """Per phase, the maps of the fit statistic (kept in ``cache``), padded to ``h = D N`` columns.
+
+    ``most``: only the ``most`` best-seen directions of each dimension (``D most``
+    columns; the pruning bound of :mod:`~drake_skills.library.prefix_bound`).
 
     Returns
     -------
@@ -192,7 +196,14 @@ def fit_terms(basis: GaussianBasis, phases: tuple, m: int, chol: np.ndarray, D: 
     seen : array of bool, shape (J, h)
         Which columns are coordinates.
     """
-    return _per_phase(cache, "fit", tuple(phases), int(m), lambda fs: _fit_terms(basis, fs, int(m), chol, D))
+    kind = "fit" if most is None else f"fit{int(most)}"
+    return _per_phase(cache, kind, tuple(phases), int(m), lambda fs: _fit_terms(basis, fs, int(m), chol, D, most))
+
+
+def seen_dof(basis: GaussianBasis, phases, m: int, D: int) -> np.ndarray:
+    """The fit statistic's degrees of freedom at each phase, shape (J,): D times the directions seen."""
+    return np.array([D * _seen_directions(basis, float(f), int(m), interaction.SEEN_RCOND)[1].size
+                     for f in phases], float)
 
 
 def _fit_terms(basis: GaussianBasis, phases: tuple, m: int, chol: np.ndarray, D: int, most: int | None = None):

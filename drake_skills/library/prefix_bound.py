@@ -15,8 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from drake_skills.library.novelty import chi2_ppf
-from drake_skills.library.prefix import _fit_terms, _per_phase, _seen_directions, coordinates
-from drake_skills.promp import interaction
+from drake_skills.library.prefix import coordinates, fit_terms, seen_dof
 from drake_skills.promp.basis import GaussianBasis
 
 #: Directions per dimension the bound looks at: the ones the samples see best.
@@ -61,12 +60,11 @@ def fit_lower_bounds(ys: np.ndarray, phases, means_h: np.ndarray, inflate: np.nd
     m, D = ys.shape
     phases = tuple(float(f) for f in phases)
     s = max(1, int(n_directions))
-    W, M, gam, _ = _per_phase(cache, f"bound{s}", phases, int(m),
-                              lambda fs: _fit_terms(basis, fs, int(m), chol, D, s))
+    W, M, gam, _ = fit_terms(basis, phases, int(m), chol, D, cache, most=s)
     v = coordinates(ys, phases, means_h, W, M, basis)                                     # (J, K, D s)
     var = noise_var + np.asarray(inflate, float)[None, :, None] * gam[:, None, :]
     bound = np.sum(v * v / var, axis=2).T        # (K, J); the padding's columns are 0 in v (zero maps)
-    dof = np.array([D * _seen_directions(basis, f, int(m), interaction.SEEN_RCOND)[1].size for f in phases], float)
+    dof = seen_dof(basis, phases, int(m), D)
     return bound, np.broadcast_to(dof[None, :], bound.shape).copy()
 
 

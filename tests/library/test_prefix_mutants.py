@@ -233,14 +233,14 @@ def test_the_bound_and_the_scores_share_the_callers_cache():
     allowed[:, 8:12] = True
     cache: dict = {}
     prefix_bound.prefix_candidates(y, GRID, allowed, means, inflate, chol, basis, 0.03, 0.999, cache)
-    assert set(cache["bound2"]["phase"]) == {(f, 30) for f in GRID[8:12]}
+    assert set(cache["fit2"]["phase"]) == {(f, 30) for f in GRID[8:12]}
     score_phases(y, tuple(GRID[8:12]), means, inflate, chol, basis, 0.03, cache)
     first = prefix.fit_terms(basis, tuple(GRID[8:12]), 30, chol, 3, cache)
     again = prefix.fit_terms(basis, tuple(GRID[8:12]), 30, chol, 3, cache)
     assert all(a is b for a, b in zip(first, again))             # the stacked entry, not a new stack
     cache2: dict = {}
     prefix_bound.fit_lower_bounds(y, (0.4,), means, inflate, chol, basis, 0.03, cache2)
-    assert set(cache2["bound2"]["phase"]) == {(0.4, 30)}
+    assert set(cache2["fit2"]["phase"]) == {(0.4, 30)}
     cache3: dict = {}
     score_prefix(y, np.array([0.5, 0.5, 0.5]), means, inflate, chol, basis, 0.03, cache3)
     score_at_phase(y, 0.95, means, inflate, chol, basis, 0.03, cache3)
