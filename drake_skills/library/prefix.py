@@ -188,12 +188,13 @@ def fit_terms(basis: GaussianBasis, phases: tuple, m: int, chol: np.ndarray, D: 
 
     Returns
     -------
-    W, M : arrays, shape (J, h, h)
-        From ``H y`` and from a component's mean to the coordinates ``v`` (columns: the
-        coordinates in ascending order of prior variance, the padding first).
-    gamma : array, shape (J, h)
+    W, M : arrays, shape (J, h, w)
+        From ``H y`` and from a component's mean to the coordinates ``v`` (``w = h``, or
+        ``D most``; columns: the coordinates in ascending order of prior variance, the
+        padding first; read-only).
+    gamma : array, shape (J, w)
         The coordinates' prior variances per unit ``c`` (0 in the padding).
-    seen : array of bool, shape (J, h)
+    seen : array of bool, shape (J, w)
         Which columns are coordinates.
     """
     kind = "fit" if most is None else f"fit{int(most)}"
@@ -207,11 +208,7 @@ def seen_dof(basis: GaussianBasis, phases, m: int, D: int) -> np.ndarray:
 
 
 def _fit_terms(basis: GaussianBasis, phases: tuple, m: int, chol: np.ndarray, D: int, most: int | None = None):
-    """:func:`fit_terms`, computed (one batched eigendecomposition per number of directions seen).
-
-    ``most``: keep only the ``most`` best-seen directions of each dimension (the columns are
-    then ``D most`` wide; :mod:`~drake_skills.library.prefix_bound`).
-    """
+    """:func:`fit_terms`, computed (one batched eigendecomposition per number of directions seen)."""
     N = basis.n_basis
     h = D * N
     J = len(phases)
