@@ -155,11 +155,11 @@ def fit_statistic(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarra
     """
     m, D = y.shape
     phases = tuple(float(f) for f in phases)
-    W, M, gam, seen = fit_terms(basis, phases, int(m), chol, D, cache)
+    W, M, gam = fit_terms(basis, phases, int(m), chol, D, cache)
     v = coordinates(y, phases, means_h, W, M, basis)                            # (J, K, h)
     var = noise_var + np.asarray(inflate, float)[None, :, None] * gam[:, None, :]
     d2 = np.sum(v * v / var, axis=2)          # the padding's columns are 0 in v (zero maps), var sigma^2 there
-    dof = seen.sum(axis=1).astype(float)      # at least D: the best-seen direction always counts
+    dof = seen_dof(basis, phases, int(m), D)  # at least D: the best-seen direction always counts
     return d2, np.broadcast_to(dof[:, None], d2.shape).copy()
 
 
@@ -193,9 +193,8 @@ def fit_terms(basis: GaussianBasis, phases: tuple, m: int, chol: np.ndarray, D: 
         ``D most``; columns: the coordinates in ascending order of prior variance, the
         padding first; read-only).
     gamma : array, shape (J, w)
-        The coordinates' prior variances per unit ``c`` (0 in the padding).
-    seen : array of bool, shape (J, w)
-        Which columns are coordinates.
+        The coordinates' prior variances per unit ``c`` (0 in the padding, whose columns
+        of ``W`` and ``M`` are zero: its coordinates are 0 and add nothing).
     """
     kind = "fit" if most is None else f"fit{int(most)}"
     return _per_phase(cache, kind, tuple(phases), int(m), lambda fs: _fit_terms(basis, fs, int(m), chol, D, most))
@@ -214,7 +213,7 @@ def _fit_terms(basis: GaussianBasis, phases: tuple, m: int, chol: np.ndarray, D:
     J = len(phases)
     width = h if most is None else D * min(int(most), N)
     W, M = np.zeros((J, h, width)), np.zeros((J, h, width))
-    gam, seen = np.zeros((J, width)), np.zeros((J, width), bool)
+    gam = np.zeros((J, width))
     dirs = [_seen_directions(basis, f, m, interaction.SEEN_RCOND) for f in phases]
     if most is not None:                                             # eigenvalues ascending: the last are best seen
         dirs = [(V[:, max(g.size - int(most), 0):], g[max(g.size - int(most), 0):]) for V, g in dirs]
@@ -233,10 +232,9 @@ def _fit_terms(basis: GaussianBasis, phases: tuple, m: int, chol: np.ndarray, D:
         W[js, :, width - k:] = np.matmul(Vs, R)
         M[js, :, width - k:] = np.matmul(Vg, R)
         gam[js, width - k:] = np.clip(gj, 0.0, None)
-        seen[js, width - k:] = True
-    for a in (W, M, gam, seen):
+    for a in (W, M, gam):
         a.setflags(write=False)
-    return W, M, gam, seen
+    return W, M, gam
 
 
 @lru_cache(maxsize=2048)

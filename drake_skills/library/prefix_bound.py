@@ -60,7 +60,7 @@ def fit_lower_bounds(ys: np.ndarray, phases, means_h: np.ndarray, inflate: np.nd
     m, D = ys.shape
     phases = tuple(float(f) for f in phases)
     s = max(1, int(n_directions))
-    W, M, gam, _ = fit_terms(basis, phases, int(m), chol, D, cache, most=s)
+    W, M, gam = fit_terms(basis, phases, int(m), chol, D, cache, most=s)
     v = coordinates(ys, phases, means_h, W, M, basis)                                     # (J, K, D s)
     var = noise_var + np.asarray(inflate, float)[None, :, None] * gam[:, None, :]
     bound = np.sum(v * v / var, axis=2).T        # (K, J); the padding's columns are 0 in v (zero maps)
