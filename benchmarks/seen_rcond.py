@@ -28,7 +28,7 @@ from drake_skills.data.interaction import load_interactions
 from drake_skills.data.synthetic import skill_bank
 from drake_skills.data.workspace import Workspace
 from drake_skills.evaluation.interaction import (InteractionContext, InteractionSettings, default_data_path,
-                                                 evaluate_interaction, replay_commits)
+                                                 development_splits, evaluate_interaction, replay_commits)
 from drake_skills.promp import interaction
 
 
@@ -39,19 +39,9 @@ def _set_share(share: float) -> None:
 def _internal_validation(orders: int):
     settings = InteractionSettings(data=default_data_path(), orders=orders)
     train = load_interactions(default_data_path()).train
-    tasks = sorted({d.task for d in train})
-    reports = []
-    for draw in range(3):
-        rng = np.random.default_rng(100 + draw)
-        taught, held = [], []
-        for task in tasks:
-            idx = [i for i, d in enumerate(train) if d.task == task]
-            rng.shuffle(idx)
-            taught += [train[i] for i in idx[:6]]
-            held += [train[i] for i in idx[6:]]
-        ctx = InteractionContext.from_splits(taught, held, settings)
-        reports.append(evaluate_interaction(settings, progress=False, figures=False, context=ctx))
-    return reports
+    return [evaluate_interaction(settings, progress=False, figures=False,
+                                 context=InteractionContext.from_splits(taught, held, settings))
+            for taught, held in development_splits(train)]
 
 
 def _mean_rows(tables, columns):

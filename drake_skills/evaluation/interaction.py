@@ -130,6 +130,47 @@ class InteractionContext:
         return cls(train, test, ws, task_mean, tuple(resample_in_time(d.t, d.robot, n) for d in test), settings)
 
 
+def development_splits(train, *, draws: int = 3, taught_per_task: int = 6, seed: int = 100):
+    """Internal validation on the training interactions alone: ``draws`` (taught, held) splits.
+
+    Settings are chosen on these and reported on the source's test split, which none of
+    them touches. Draw ``i`` shuffles each task's interactions with
+    ``numpy.random.default_rng(seed + i)`` and teaches the first ``taught_per_task`` (the
+    rest are held out), tasks in sorted order, interactions in file order within the
+    shuffle. Pass a split to :meth:`InteractionContext.from_splits`.
+
+    Returns
+    -------
+    list of (taught, held) tuples of demonstrations, one per draw.
+
+    Raises
+    ------
+    ValueError
+        If an interaction has no task, or a task has no interaction left to hold out.
+    """
+    train = tuple(train)
+    if any(d.task is None for d in train):
+        raise ValueError("development_splits: every training interaction needs a task")
+    if int(draws) < 1 or int(taught_per_task) < 1:
+        raise ValueError(f"development_splits: draws and taught_per_task must be >= 1, got {draws}, {taught_per_task}")
+    by_task = {t: [i for i, d in enumerate(train) if d.task == t] for t in sorted({d.task for d in train})}
+    short = {t: len(ix) for t, ix in by_task.items() if len(ix) <= taught_per_task}
+    if short:
+        raise ValueError(f"development_splits: tasks {short} have no more than {taught_per_task} training "
+                         "interactions, none would be held out")
+    splits = []
+    for draw in range(int(draws)):
+        rng = np.random.default_rng(seed + draw)
+        taught, held = [], []
+        for ix in by_task.values():
+            ix = list(ix)
+            rng.shuffle(ix)
+            taught += [train[i] for i in ix[:taught_per_task]]
+            held += [train[i] for i in ix[taught_per_task:]]
+        splits.append((tuple(taught), tuple(held)))
+    return splits
+
+
 def workspace_of(demos) -> Workspace:
     """The bounding box of the human positions of ``demos`` (the paper's normalization, Eq. 14)."""
     H = np.concatenate([d.human for d in demos])

@@ -11,10 +11,11 @@ import json
 import numpy as np
 import pytest
 
+from drake_skills.data.demonstration import Demonstration
 from drake_skills.data.interaction import load_interactions
 from drake_skills.evaluation.common import use_agg
-from drake_skills.evaluation.interaction import (InteractionContext, InteractionSettings, interaction_trial,
-                                                 prefix_end, workspace_of)
+from drake_skills.evaluation.interaction import (InteractionContext, InteractionSettings, development_splits,
+                                                 interaction_trial, prefix_end, workspace_of)
 from drake_skills.library.incremental import LibraryConfig, SkillLibrary
 from shared_data import require
 
@@ -132,3 +133,28 @@ def test_replay_commits_commits_to_a_taught_skill_early_and_holds_for_an_untaugh
     g, at_rest = replay_commits(lib, bank.demo(3, rng), identity)
     assert g.final and not at_rest and g.component is None and g.status == "unknown" and not g.commits
     assert np.isnan(commit_share(bank.demo(3, rng), identity, 0.1, g.commit_time))
+
+
+def _tasked(task: str, k: int) -> Demonstration:
+    t = np.linspace(0.0, 1.0, 5)
+    return Demonstration(t=t, human=np.outer(t, [1.0, float(k), 0.0]), robot=np.zeros((5, 2)), task=task,
+                         name=f"{task}:{k}")
+
+
+def test_development_splits_hold_out_the_rest_of_every_task_and_repeat_from_the_seed():
+    train = [_tasked(task, k) for k in range(8) for task in ("b", "a")] + [_tasked("c", k) for k in range(7)]
+    splits = development_splits(train, draws=3, taught_per_task=6)
+    assert len(splits) == 3
+    for taught, held in splits:
+        for task, n in (("a", 8), ("b", 8), ("c", 7)):
+            assert sum(d.task == task for d in taught) == 6
+            assert sum(d.task == task for d in held) == n - 6
+        assert sorted(d.name for d in taught + held) == sorted(d.name for d in train)  # a partition
+        assert [d.task for d in taught] == ["a"] * 6 + ["b"] * 6 + ["c"] * 6  # tasks in sorted order
+    assert len({tuple(d.name for d in held) for _, held in splits}) == 3  # the draws differ
+    again = development_splits(train, draws=3, taught_per_task=6)
+    assert [[d.name for d in taught] for taught, _ in again] == [[d.name for d in taught] for taught, _ in splits]
+    with pytest.raises(ValueError, match=r"tasks \{'c': 7\} have no more than 7"):
+        development_splits(train, taught_per_task=7)
+    with pytest.raises(ValueError, match="needs a task"):
+        development_splits(train + [Demonstration(t=np.linspace(0, 1, 5), human=np.zeros((5, 3)))])
