@@ -146,6 +146,11 @@ class LibraryConfig:
     # --- conditioning (Eq. 13) and anticipation ---
     #: sigma_o, variance of an observed human sample (normalized units^2).
     observation_noise: float = 0.05
+    #: Scale Eq. (13)'s correction by a gain per robot basis function that the library fits
+    #: to its own demonstrations before each joins its component (``library.gain``; a
+    #: deviation from the paper: on real interactions the full correction was worse than the
+    #: component's mean). False: the paper's Eq. (13).
+    conditioning_gain: bool = True
 
     def __post_init__(self):
         ints = {"n_samples": 4, "n_basis_human": 2, "n_basis_robot": 2, "merge_min_age": 0, "delete_min_age": 0}
@@ -172,6 +177,9 @@ class LibraryConfig:
         if self.split_quantile <= self.merge_quantile:
             raise ValueError(f"LibraryConfig.split_quantile ({self.split_quantile}) must be above merge_quantile "
                              f"({self.merge_quantile}), or a merge would be split again at once")
+        if not isinstance(self.conditioning_gain, (bool, np.bool_)):
+            raise ValueError(f"LibraryConfig.conditioning_gain must be true or false, got {self.conditioning_gain!r}")
+        self.conditioning_gain = bool(self.conditioning_gain)
         if self.novelty_test not in NOVELTY_TESTS:
             raise ValueError(f"LibraryConfig.novelty_test must be one of {NOVELTY_TESTS}, got {self.novelty_test!r}")
         self.workspace = _as_workspace(self.workspace)

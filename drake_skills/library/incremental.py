@@ -66,6 +66,7 @@ from drake_skills.data.workspace import Workspace
 from drake_skills.library.algorithm import ComponentModel, Components, Metric, fold_in, gating_metric
 from drake_skills.library.bounded import put_bounded
 from drake_skills.library.config import NOVELTY_TESTS, LibraryConfig, WorkspaceBounds
+from drake_skills.library.gain import ConditioningGain
 from drake_skills.library.guards import UNITS_RANGE, data_warning
 from drake_skills.library.novelty import novelty_rule
 from drake_skills.library.files import FileMixin
@@ -135,6 +136,7 @@ class SkillLibrary(RecognitionMixin, FileMixin):
     def _reset(self):
         self._components = Components()
         self._scale: SharedScale | None = None
+        self._gain = ConditioningGain.empty(self.config.n_basis_robot)  # the fit of Eq. (13)'s gains (library.gain)
         self._history: list[dict] = []
         self._next_id = 0
         self._n_seen = 0
@@ -157,7 +159,7 @@ class SkillLibrary(RecognitionMixin, FileMixin):
         comps = tuple(ComponentState(c.id, self._n_seen - c.created, c.cluster, c.subclusters)
                       for c in self._components.items)
         return LibraryState(self.config, self.dim_human_, self.dim_robot_, self._next_id, self._n_seen, comps,
-                            tuple(dict(e) for e in self._history), self._scale, self._with_workspace)
+                            tuple(dict(e) for e in self._history), self._scale, self._with_workspace, self._gain)
 
     @classmethod
     def from_state(cls, state: LibraryState) -> "SkillLibrary":
@@ -168,6 +170,8 @@ class SkillLibrary(RecognitionMixin, FileMixin):
         lib._history = [dict(e) for e in state.history]
         lib._next_id, lib._n_seen = int(state.next_id), int(state.n_seen)
         lib._with_workspace = state.trained_with_workspace
+        if state.gain is not None:
+            lib._gain = state.gain
         if state.dim_human is not None:
             lib.dim_human_, lib.dim_robot_ = int(state.dim_human), int(state.dim_robot)
             lib._scale = state.scale
@@ -319,7 +323,9 @@ class SkillLibrary(RecognitionMixin, FileMixin):
         Its weights are the ridge estimates the library keeps; :meth:`predict_robot` of
         the library compares a beginning's samples with the least-squares weights instead
         (the ridge's shrinkage undone, :meth:`_prefix_model`), so the two robot means
-        differ by that shrinkage (about 1 % of the mean on synthetic skills).
+        differ by that shrinkage (about 1 % of the mean on synthetic skills). The library
+        also scales Eq. (13)'s correction by its learned gains (:mod:`~drake_skills.library.gain`,
+        ``config.conditioning_gain``); this ProMP conditions as the paper's Eq. (13).
         """
         c = self._model(component_id)
         cfg = self.config
@@ -505,8 +511,15 @@ class SkillLibrary(RecognitionMixin, FileMixin):
         scale = self._scale if self._scale is not None else SharedScale.empty(w.shape[0])
         step = fold_in(comps, scale, w, demo.duration, path, n_human=h, config=self.config, rule=self._rule,
                        next_id=self._next_id, demo_index=n, fit_residual=fit_residual)
+        gain = self._gain
+        if step.recognized is not None and demo.robot is not None:
+            # Eq. (13) of the component that explained it, before it learns from it (library.gain)
+            prior_w, _, mean_w, _ = self._condition(self._model(step.recognized), y_h, 1.0)
+            Phi_r = cfg.basis_robot.phi_uniform(cfg.n_samples)
+            gain = gain.add((mean_w - prior_w).reshape(demo.dim_robot, -1),
+                            (w[h:] - prior_w).reshape(demo.dim_robot, -1), Phi_r.T @ Phi_r)
         # commit: nothing above touched self
-        self._components, self._scale = step.components, step.scale
+        self._components, self._scale, self._gain = step.components, step.scale, gain
         self._history.extend(step.history)
         self._next_id = step.next_id
         self._n_seen = n + 1

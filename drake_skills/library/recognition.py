@@ -3,7 +3,7 @@
 :class:`RecognitionMixin` is the query half of
 :class:`~drake_skills.library.incremental.SkillLibrary` (the learning half and the
 state live there). It reads the library's state through the attributes and methods
-``SkillLibrary`` defines: ``config``, ``_components``, ``_rule``, ``_scale``,
+``SkillLibrary`` defines: ``config``, ``_components``, ``_rule``, ``_scale``, ``_gain``,
 ``n_human``, ``has_robot``, ``dim_robot_``, ``_metric()``, ``_whitened_means()``,
 ``_shared_cov()``, ``_expert_cov()``, ``_cached()``, ``_model()``,
 ``_check_fitted()``, ``human_samples()``, ``_normalized()`` and ``_guard()``; it keeps
@@ -27,6 +27,7 @@ import numpy as np
 
 from drake_skills.data.workspace import Workspace
 from drake_skills.library.algorithm import ComponentModel, gating_scores, responsibilities
+from drake_skills.library.gain import scale_correction
 from drake_skills.library.novelty import Chi2Rule, chi2_ppf
 from drake_skills.library.prefix import PHASE_GRID, phase_band, score_at_phase, score_prefix
 from drake_skills.library.prefix_bound import prefix_candidates
@@ -233,20 +234,31 @@ class RecognitionMixin:
                 if rec.component is None:
                     raise UnknownSkillError(_unknown_message(rec))
                 component = rec.component
-        c = self._model(component)
-        Phi_o = cfg.basis_human.phi(np.linspace(0.0, f, y.shape[0]))
-        h, n = self.n_human, n_steps or cfg.n_samples
-        # Eq. (13), keeping only the robot block of the posterior, with the human block in the
-        # least-squares weights the samples are compared with (see _prefix_model)
+        prior_w, prior_cov, mean_w, cov_w = self._condition(self._model(component), y, f)
+        if cfg.conditioning_gain:  # Eq. (13)'s correction scaled by the learned gains (library.gain)
+            gains = np.tile(self._gain.gains(), self.dim_robot_)
+            mean_w, cov_w = scale_correction(prior_w, prior_cov, mean_w, cov_w, gains)
+        n = n_steps or cfg.n_samples
+        mean_r = cfg.basis_robot.phi_uniform(n) @ mean_w.reshape(self.dim_robot_, -1).T
+        cov_r = trajectory_covariance(cov_w, cfg.basis_robot, self.dim_robot_, n_steps=n)
+        return mean_r, cov_r
+
+    def _condition(self, c: ComponentModel, y: np.ndarray, f: float):
+        """Eq. (13) for component ``c`` on samples ``y`` evenly spaced over phases [0, f], in robot weights.
+
+        Returns the robot block before conditioning (mean, covariance) and after (mean,
+        covariance). The human block is in the least-squares weights the samples are
+        compared with (see :meth:`_prefix_model`).
+        """
+        h = self.n_human
+        Phi_o = self.config.basis_human.phi(np.linspace(0.0, f, y.shape[0]))
         U = self._prefix_model().unshrink
         mean = np.concatenate([U @ c.mean[:h], c.mean[h:]])
         cov = np.array(self._expert_cov(c))
         cov[:h, :] = U @ cov[:h, :]
         cov[:, :h] = cov[:, :h] @ U.T
         mean_w, cov_w = condition_on_observations(mean, cov, Phi_o, y, self._noise(), start=h)
-        mean_r = cfg.basis_robot.phi_uniform(n) @ mean_w.reshape(self.dim_robot_, -1).T
-        cov_r = trajectory_covariance(cov_w, cfg.basis_robot, self.dim_robot_, n_steps=n)
-        return mean_r, cov_r
+        return mean[h:], cov[h:, h:], mean_w, cov_w
 
     def _prefix_model(self) -> "_PrefixModel":
         """The components' human means and the gating covariance as the samples of a motion see them.

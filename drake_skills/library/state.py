@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from drake_skills.library.config import LibraryConfig
+from drake_skills.library.gain import ConditioningGain
 from drake_skills.library.scale import Cluster, SharedScale
 
 
@@ -100,6 +101,9 @@ class LibraryState:
         Whether any demonstration was folded in with a workspace (Eq. 14 from raw
         units), so that a query without one is probably a mistake; None when not known
         (files written before the library kept it).
+    gain : ConditioningGain or None
+        The fit of Eq. (13)'s gains (:mod:`~drake_skills.library.gain`); None: none yet
+        (files written before the library kept it), the paper's Eq. (13).
     """
 
     config: LibraryConfig
@@ -111,8 +115,18 @@ class LibraryState:
     history: tuple[dict, ...] = ()
     scale: SharedScale | None = None
     trained_with_workspace: bool | None = None
+    gain: ConditioningGain | None = None
 
     def __post_init__(self):
+        if self.gain is not None:
+            if not isinstance(self.gain, ConditioningGain):
+                raise ValueError(f"gain must be a ConditioningGain or None, got {type(self.gain).__name__}")
+            if self.gain.n_basis != self.config.n_basis_robot:
+                raise ValueError(f"the conditioning gain has {self.gain.n_basis} basis functions, the config "
+                                 f"{self.config.n_basis_robot} robot basis functions")
+            if self.gain.count > self.n_seen:
+                raise ValueError(f"the conditioning gain counts {self.gain.count} demonstrations; the library has "
+                                 f"seen {self.n_seen}")
         if self.trained_with_workspace is not None and not isinstance(self.trained_with_workspace, bool):
             raise ValueError(f"trained_with_workspace must be True, False or None, got {self.trained_with_workspace!r}")
         if not isinstance(self.config, LibraryConfig):

@@ -9,7 +9,9 @@ Layout (schema version 3):
 * ``metadata``: a 0-d unicode array holding JSON: ``{"format": "drake-skills
   library", "schema_version": 3, "generation", "config": {...}, "dim_human", "dim_robot",
   "next_id", "n_seen", "history": [...], "trained_with_workspace": true, false or
-  null (optional: files written before it are read as null, unknown), "scale": {"n", "dof"}, "components":
+  null (optional: files written before it are read as null, unknown), "gain": null or
+  {"count", "normal", "target"} (the fit of Eq. (13)'s gains, ``library.gain``; optional: files
+  written before it read as null), "scale": {"n", "dof"}, "components":
   [{"id", "age", "support", "duration", "path_length", "rank", "subclusters":
   [{"support", "duration", "path_length", "rank"}, null or {...}]}, ...]}``;
 * ``means`` (K, d); ``factors`` (d, R): the components' scatter factors side by side
@@ -58,6 +60,7 @@ import numpy as np
 from drake_skills._io import atomic_write
 from drake_skills._lock import FileLock
 from drake_skills.library.config import RETIRED_FIELDS, LibraryConfig
+from drake_skills.library.gain import ConditioningGain
 from drake_skills.library.invariants import invariant_violations
 from drake_skills.library.scale import Cluster, SharedScale
 from drake_skills.library.state import ComponentState, LibraryState
@@ -119,6 +122,8 @@ def save_state(state: LibraryState, path, *, generation: int = 1) -> Path:
         "n_seen": state.n_seen,
         "history": list(state.history),
         "trained_with_workspace": state.trained_with_workspace,
+        "gain": None if state.gain is None else {"count": state.gain.count, "normal": state.gain.normal.tolist(),
+                                                 "target": state.gain.target.tolist()},
         "scale": {"n": int(sc.n), "dof": float(sc.dof), "fit_m2": float(sc.fit_m2)},
         "components": [dict(id=c.id, age=c.age, **_cluster_meta(c.cluster),
                             subclusters=[None if s is None else _cluster_meta(s) for s in c.subclusters])
@@ -391,6 +396,7 @@ def _state_of(meta: dict, version: int, arrays, where: str) -> LibraryState:
         with_ws = meta.get("trained_with_workspace")  # optional key: schema 3 without it reads as unknown
         if with_ws is not None and not isinstance(with_ws, bool):
             raise ValueError(f"trained_with_workspace must be true, false or null, got {with_ws!r}")
+        gain = _gain_of(meta.get("gain"))  # optional key: files written before it read as None (Eq. 13 as is)
     except (KeyError, TypeError, ValueError) as exc:
         raise ValueError(f"{where}: bad metadata ({type(exc).__name__}: {exc})") from None
     K = len(comps_meta)
@@ -398,7 +404,7 @@ def _state_of(meta: dict, version: int, arrays, where: str) -> LibraryState:
         if K:
             raise ValueError(f"{where}: components but no dimensions")
         try:
-            return LibraryState(config, None, None, next_id, n_seen, (), history, None, with_ws)
+            return LibraryState(config, None, None, next_id, n_seen, (), history, None, with_ws, gain)
         except ValueError as exc:
             raise ValueError(f"{where}: {exc}") from None
     ws = config.workspace
@@ -447,7 +453,19 @@ def _state_of(meta: dict, version: int, arrays, where: str) -> LibraryState:
         raise ValueError(f"{where}: component metadata is bad ({type(exc).__name__}: {exc})") from None
     if not np.allclose(scale.pooled, scale.pooled.T, rtol=1e-9, atol=1e-12):
         raise ValueError(f"{where}: the pooled scatter is not symmetric")
-    return _consistent(where, config, dims[0], dims[1], next_id, n_seen, tuple(comps), history, scale, with_ws)
+    return _consistent(where, config, dims[0], dims[1], next_id, n_seen, tuple(comps), history, scale, with_ws,
+                       gain)
+
+
+def _gain_of(g) -> ConditioningGain | None:
+    """The ``gain`` entry of the metadata: null, or ``{"count", "normal", "target"}`` (checked by the class)."""
+    if g is None:
+        return None
+    if not isinstance(g, dict) or set(g) != {"count", "normal", "target"}:
+        raise ValueError("gain must be null or an object with count, normal and target")
+    if isinstance(g["count"], bool) or not isinstance(g["count"], int):
+        raise ValueError(f"gain count must be an integer, got {g['count']!r}")
+    return ConditioningGain(np.array(g["normal"], dtype=float), np.array(g["target"], dtype=float), g["count"])
 
 
 def _consistent(where: str, *args) -> LibraryState:

@@ -383,9 +383,12 @@ def _conditioned_robot_reference(lib, k, y, f):
     return mu[15:], S[15:, 15:]
 
 
+@pytest.mark.parametrize("gain", [False, True], ids=["eq13", "learned_gain"])
 @pytest.mark.parametrize("f", [1.0, 0.5])
-def test_predict_robot_is_the_conditioned_robot_block_over_the_components_phase(f):
-    lib = _lib(n=8, tasks=(0, 1))
+def test_predict_robot_is_the_conditioned_robot_block_over_the_components_phase(f, gain):
+    """Eq. (13) by brute force; with the learned gain (library.gain) the predictor
+    ``m0 + G K (y - E y)`` and its error covariance, from the joint Gaussian's blocks."""
+    lib = _lib(n=8, tasks=(0, 1), conditioning_gain=gain)
     demo = synthetic_demo(1, np.random.default_rng(12), T=30)
     human = demo.human
     if f < 1:
@@ -395,16 +398,20 @@ def test_predict_robot_is_the_conditioned_robot_block_over_the_components_phase(
     y = lib.human_samples(human, observed_fraction=f)
     assert y.shape == (30 if f == 1 else 15, 3)
     mu_r, S_r = _conditioned_robot_reference(lib, k, y, f)
+    if gain:
+        g = np.tile(lib.state().gain.gains(), 7)
+        assert lib.state().gain.count >= 5 and not np.allclose(g, 1.0)  # learned from the 8 demonstrations
+        m0, C0 = np.asarray(lib.component(k).mean)[15:], np.asarray(lib.component(k).cov)[15:, 15:]
+        mu_r = m0 + g * (mu_r - m0)
+        # error covariance of m0 + G K r with Cov(r) = R, Cov(w_r, r) = C_ry, K = C_ry R^-1:
+        # C0 - G K C_yr - C_ry K^T G + G K R K^T G, where K C_yr = K R K^T = C0 - S_r (Eq. 13's reduction)
+        M, G = C0 - S_r, np.diag(g)
+        S_r = C0 - G @ M - M @ G + G @ M @ G
     mean, cov = lib.predict_robot(human, observed_fraction=f, n_steps=12)
     Phi_r = lib.config.basis_robot.phi(np.linspace(0, 1, 12))
     np.testing.assert_allclose(mean, Phi_r @ mu_r.reshape(7, 5).T, rtol=1e-7, atol=1e-9)
     Psi = np.kron(np.eye(7), Phi_r[4][None, :])
     np.testing.assert_allclose(cov[4], Psi @ S_r @ Psi.T, rtol=1e-6, atol=1e-10)
-    assert lib.predict_robot(human, f)[0].shape == (30, 7)  # n_steps defaults to n_samples
-    other = 1 - k
-    np.testing.assert_allclose(lib.predict_robot(human, f, component=other, n_steps=12)[0],
-                               Phi_r @ _conditioned_robot_reference(lib, other, y, f)[0].reshape(7, 5).T,
-                               rtol=1e-7, atol=1e-9)
 
 
 def test_a_short_prefix_is_resampled_to_at_least_two_samples():

@@ -138,6 +138,10 @@ def _reference_prediction(lib, yn, cid, f, n_steps):
     T[:h, :h] = unshrink(cfg, h)              # the samples see the least-squares human weights
     mu, _ = condition_on_observations(T @ c.mean, T @ c.cov @ T.T, cfg.basis_human.phi(np.linspace(0, f, m)), y,
                                       lib.observation_noise(), start=h)
+    if cfg.conditioning_gain:  # Eq. (13)'s correction scaled by the library's learned gains (library.gain)
+        g = lib.state().gain
+        m0 = np.asarray(c.mean)[h:]
+        mu = m0 + np.tile(g.gains(), lib.dim_robot_) * (mu - m0)
     return cfg.basis_robot.phi_uniform(n_steps) @ mu.reshape(lib.dim_robot_, -1).T
 
 
