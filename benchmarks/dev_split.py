@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import numbers
 import sys
 
 import numpy as np
@@ -34,7 +35,7 @@ def _mean_table(tables) -> list[list]:
     for i, row in enumerate(tables[0].rows):
         cells = []
         for j, v in enumerate(row):
-            if isinstance(v, (int, float)) and not isinstance(v, bool):
+            if isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_)):
                 vals = np.array([float(t.rows[i][j]) for t in tables])
                 cells.append(f"{np.nanmean(vals):.3g}" if np.isfinite(vals).any() else "-")
             else:
@@ -60,7 +61,8 @@ def sweep(field: str, values, *, orders: int = 4, tables=TABLES, data=None, out=
         reps = [evaluate_interaction(settings, progress=False, figures=False,
                                      context=InteractionContext.from_splits(taught, held, settings))
                 for taught, held in splits]
-        print(f"\n## {field} = {v!r}{' (default)' if v == default else ''}", file=out)
+        is_default = v == default and isinstance(v, bool) == isinstance(default, bool)
+        print(f"\n## {field} = {v!r}{' (default)' if is_default else ''}", file=out)
         for name in tables:
             t = reps[0].tables[name]
             print(f"\n{name}\n\n| " + " | ".join(t.columns) + " |\n|" + "---|" * len(t.columns), file=out)

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import time
 
+from dataclasses import replace
+
 import numpy as np
 
 from drake_skills.benchmarks._timing import median_ms
@@ -76,6 +78,16 @@ def run(quick: bool = False, config=None) -> list[dict]:
                      "goal": "< 2 ms at K=5" if K == 5 else "", "notes": "gating 3x15, stacked 10x15, T=150"})
         if K == 5:
             lib5, bank5 = lib, bank
+    # the same K = 5 stream without the learned conditioning gain (its fit costs one Eq. (13) per update)
+    if lib_config.conditioning_gain:
+        state = np.random.default_rng(0)
+        lib, bank = _library_with(5, state, replace(lib_config, conditioning_gain=False))
+        demos = [_demo(bank, int(state.integers(5)), state) for _ in range(repeats)]
+        it = iter(demos)
+        ms = median_ms(lambda: lib.partial_fit(next(it)), repeats, warmup=False)
+        rows.append({"name": f"partial_fit, K=5, conditioning_gain off (found {lib.n_components})",
+                     "value": round(ms, 3), "unit": "ms", "goal": "",
+                     "notes": "the paper's Eq. (13): no gain fit in the update"})
     probe = [_demo(bank5, int(rng.integers(5)), rng).human for _ in range(repeats)]
     it = iter(probe)
 

@@ -24,7 +24,12 @@ of the scaled predictor under the component's joint Gaussian,
 ``Sigma_rr - (Lambda M + M Lambda - Lambda M Lambda)`` with ``M`` the reduction Eq. (13)
 gives, so a gain of 0 returns the prior and a gain of 1 Eq. (13).
 
-``LibraryConfig.conditioning_gain = False`` keeps the paper's Eq. (13) (the record is still kept).
+The gains are fitted on whole motions (each demonstration conditioned on all of it) and applied
+at every observed fraction, so a beginning's correction is scaled as a whole motion's would be
+(RESULTS.md, "Conditioning against the mean", has the salad's response against the fraction).
+
+``LibraryConfig.conditioning_gain = False`` keeps the paper's Eq. (13); the library then keeps no
+record (and ``partial_fit`` skips the one conditioning per demonstration the fit costs).
 """
 from __future__ import annotations
 
@@ -45,7 +50,7 @@ class ConditioningGain:
     count: int
 
     def __post_init__(self):
-        A, b = np.asarray(self.normal, float), np.asarray(self.target, float)
+        A, b = np.array(self.normal, dtype=float), np.array(self.target, dtype=float)  # copies: frozen below
         B = b.shape[0] if b.ndim == 1 else -1
         if b.ndim != 1 or A.shape != (B, B):
             raise ValueError(f"conditioning gain: normal must be (B, B) and target (B,), got {A.shape} and {b.shape}")
@@ -53,7 +58,18 @@ class ConditioningGain:
             raise ValueError("conditioning gain: normal and target must be finite")
         if not np.allclose(A, A.T, rtol=1e-9, atol=1e-12):
             raise ValueError("conditioning gain: normal is not symmetric")
-        if isinstance(self.count, bool) or int(self.count) != self.count or self.count < 0:
+        if A.size:
+            scale = float(np.abs(A).max())
+            with np.errstate(over="ignore", invalid="ignore"):  # an overflowing record fails the test below
+                bad = not np.isfinite(np.trace(A)) or np.linalg.eigvalsh(0.5 * (A + A.T)).min() < -1e-9 * max(scale, 1e-300)
+            if bad:
+                raise ValueError("conditioning gain: normal must be positive semidefinite (a sum of squares) with a "
+                                 "finite trace")
+        try:
+            whole = not isinstance(self.count, bool) and int(self.count) == self.count
+        except (TypeError, ValueError, OverflowError):
+            whole = False
+        if not whole or self.count < 0:
             raise ValueError(f"conditioning gain: count must be an integer >= 0, got {self.count!r}")
         if self.count == 0 and (A.any() or b.any()):
             raise ValueError("conditioning gain: a record of 0 demonstrations must be zero")
@@ -80,10 +96,29 @@ class ConditioningGain:
                              f"got {d.shape}, {e.shape}, {np.shape(gram)}")
         A = self.normal + np.einsum("da,ab,db->ab", d, gram, d)
         b = self.target + np.einsum("da,da->a", d, e @ gram)   # gram is symmetric: (G e)_a = (e G)_a
-        return ConditioningGain(0.5 * (A + A.T), b, self.count + 1)
+        if not (np.isfinite(A).all() and np.isfinite(b).all()):
+            raise ValueError("conditioning gain: a correction or error is not finite")
+        # a sum of the record and a positive semidefinite term: valid by construction, so the
+        # checks of __post_init__ (an eigendecomposition, a quarter of a partial_fit) are skipped
+        out = object.__new__(ConditioningGain)
+        A = 0.5 * (A + A.T)
+        A.setflags(write=False)
+        b.setflags(write=False)
+        object.__setattr__(out, "normal", A)
+        object.__setattr__(out, "target", b)
+        object.__setattr__(out, "count", self.count + 1)
+        return out
 
     def gains(self) -> np.ndarray:
-        """``lambda`` (B,) in [0, 1]; all 1 before the first demonstration (see the module)."""
+        """``lambda`` (B,) in [0, 1], read-only; all 1 before the first demonstration (see the module)."""
+        hit = self.__dict__.get("_gains")  # computed once per record (every predict_robot asks)
+        if hit is None:
+            hit = self._fit()
+            hit.setflags(write=False)
+            object.__setattr__(self, "_gains", hit)
+        return hit
+
+    def _fit(self) -> np.ndarray:
         B = self.n_basis
         if self.count == 0:
             return np.ones(B)
@@ -91,6 +126,8 @@ class ConditioningGain:
         if P <= 0.0:  # every correction so far was zero: nothing to learn from
             return np.ones(B)
         lam = np.linalg.solve(self.normal + P * np.eye(B), self.target + P)
+        if not np.isfinite(lam).all():
+            raise ValueError("conditioning gain: the fit is not finite (the record overflows)")
         return np.clip(lam, 0.0, 1.0)
 
 
@@ -99,10 +136,13 @@ def scale_correction(prior_mean, prior_cov, mean, cov, gains) -> tuple[np.ndarra
 
     ``prior_mean`` (n,), ``prior_cov`` (n, n): before conditioning; ``mean``, ``cov``: Eq. (13).
     Returns ``prior_mean + g (mean - prior_mean)`` and
-    ``prior_cov - (G M + M G - G M G)`` with ``G = diag(g)``, ``M = prior_cov - cov``.
+    ``prior_cov - (G M + M G - G M G)`` with ``G = diag(g)``, ``M = prior_cov - cov``, computed as
+    ``cov + (1 - g)(1 - g)^T * M`` (elementwise; the same matrix, and symmetric as M is).
     """
     g = np.asarray(gains, float)
+    q = 1.0 - g
     M = np.asarray(prior_cov) - np.asarray(cov)
-    gc = g[:, None]
-    out = np.asarray(prior_cov) - (gc * M + M * g[None, :] - gc * M * g[None, :])
-    return np.asarray(prior_mean) + g * (np.asarray(mean) - np.asarray(prior_mean)), 0.5 * (out + out.T)
+    M *= np.outer(q, q)
+    M += cov
+    mean = np.asarray(mean)
+    return mean - q * (mean - np.asarray(prior_mean)), M

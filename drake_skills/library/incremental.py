@@ -56,6 +56,7 @@ from __future__ import annotations
 import logging
 import warnings
 from collections import OrderedDict
+from functools import lru_cache
 from typing import Sequence
 
 import numpy as np
@@ -76,7 +77,7 @@ from drake_skills.library.state import ComponentState, LibraryState
 from drake_skills.library.storage import LibraryChangedError
 from drake_skills.library.views import (Component, DataWarning, Recognition, UnitsWarning, UnknownSkillError,
                                         Update, WorkspaceWarning)
-from drake_skills.promp.basis import ridge_weights
+from drake_skills.promp.basis import GaussianBasis, ridge_weights
 from drake_skills.promp.interaction import InteractionProMP
 from drake_skills.promp.preprocessing import arc_length, resample_in_time
 
@@ -90,6 +91,15 @@ __all__ = ["Component", "ComponentState", "DataWarning", "LibraryChangedError", 
 
 log = logging.getLogger(__name__)
 
+
+
+@lru_cache(maxsize=8)
+def _robot_gram(basis: GaussianBasis, n_samples: int) -> np.ndarray:
+    """``Phi_r^T Phi_r`` over ``n_samples`` phases: the robot trajectory's metric of the gain fit (cached, read-only)."""
+    Phi = basis.phi_uniform(n_samples)
+    G = Phi.T @ Phi
+    G.setflags(write=False)
+    return G
 
 
 def _read_only(a: np.ndarray) -> np.ndarray:
@@ -111,7 +121,7 @@ class SkillLibrary(RecognitionMixin, FileMixin):
 
     Threads: queries (``recognize``, ``estimate_phase``, ``predict_robot``) may run from
     several threads at once. Learning (``fit``, ``partial_fit``) replaces the
-    components and the scale one after the other, so it must not overlap a query on the
+    components, the scale and the conditioning gain one after the other, so it must not overlap a query on the
     same library: hold a lock, or query a copy (``SkillLibrary.from_state(lib.state())``).
 
     Examples
@@ -512,12 +522,11 @@ class SkillLibrary(RecognitionMixin, FileMixin):
         step = fold_in(comps, scale, w, demo.duration, path, n_human=h, config=self.config, rule=self._rule,
                        next_id=self._next_id, demo_index=n, fit_residual=fit_residual)
         gain = self._gain
-        if step.recognized is not None and demo.robot is not None:
+        if cfg.conditioning_gain and step.recognized is not None and demo.robot is not None:
             # Eq. (13) of the component that explained it, before it learns from it (library.gain)
-            prior_w, _, mean_w, _ = self._condition(self._model(step.recognized), y_h, 1.0)
-            Phi_r = cfg.basis_robot.phi_uniform(cfg.n_samples)
-            gain = gain.add((mean_w - prior_w).reshape(demo.dim_robot, -1),
-                            (w[h:] - prior_w).reshape(demo.dim_robot, -1), Phi_r.T @ Phi_r)
+            prior_w, shift = self._correction(self._model(step.recognized), y_h)
+            gain = gain.add(shift.reshape(demo.dim_robot, -1), (w[h:] - prior_w).reshape(demo.dim_robot, -1),
+                            _robot_gram(cfg.basis_robot, cfg.n_samples))
         # commit: nothing above touched self
         self._components, self._scale, self._gain = step.components, step.scale, gain
         self._history.extend(step.history)

@@ -31,10 +31,10 @@ from drake_skills.library.gain import scale_correction
 from drake_skills.library.novelty import Chi2Rule, chi2_ppf
 from drake_skills.library.prefix import PHASE_GRID, phase_band, score_at_phase, score_prefix
 from drake_skills.library.prefix_bound import prefix_candidates
-from drake_skills.library.scale import observation_noise
+from drake_skills.library.scale import cross_covariance, gating_covariance, observation_noise
 from drake_skills.library.views import Recognition, UnknownSkillError
 from drake_skills.promp.basis import GaussianBasis, ridge_weights, trajectory_covariance
-from drake_skills.promp.interaction import condition_on_observations
+from drake_skills.promp.interaction import condition_on_observations, conditioned_mean_shift
 
 __all__ = ["PRUNE_MIN_COMPONENTS", "RecognitionMixin"]
 
@@ -189,7 +189,10 @@ class RecognitionMixin:
 
         Recognizes the skill (unless ``component`` is given), conditions its
         Interaction ProMP on the observed human samples and returns the robot
-        trajectory distribution over the component's phase (normalized time).
+        trajectory distribution over the component's phase (normalized time). With
+        ``config.conditioning_gain`` (the default) Eq. (13)'s correction is scaled by
+        the library's learned gains (:mod:`~drake_skills.library.gain`): the mean and
+        covariance are those of the scaled predictor.
         Without ``observed_fraction`` the fraction observed is estimated as in
         :meth:`recognize`. ``normalized=True``: ``human`` is already in the library's
         normalized units (see :meth:`human_samples`).
@@ -259,6 +262,26 @@ class RecognitionMixin:
         cov[:, :h] = cov[:, :h] @ U.T
         mean_w, cov_w = condition_on_observations(mean, cov, Phi_o, y, self._noise(), start=h)
         return mean[h:], cov[h:, h:], mean_w, cov_w
+
+    def _correction(self, c: ComponentModel, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Eq. (13)'s shift of component ``c``'s robot weights for a whole motion's samples ``y``, and their prior mean.
+
+        What :meth:`_condition` gives for ``f = 1`` (``mean_w - prior_w``), from the two
+        blocks of the expert covariance it needs (``partial_fit`` fits the gains with it,
+        and every update would otherwise build the whole stacked covariance).
+        """
+        cfg = self.config
+        h = self.n_human
+        U = np.kron(np.eye(self.dim_human_), _unshrink(cfg.basis_human, int(cfg.n_samples), float(cfg.ridge)))
+        F, denom = c.cluster.factor, cfg.expert_prior + c.support - 1.0
+        cross = cross_covariance(self._scale, h, prior_strength=cfg.prior_strength, shrinkage=cfg.shrinkage)
+        Sigma_hh = gating_covariance(self._scale, h, prior_scale=cfg.prior_scale, prior_strength=cfg.prior_strength,
+                                     shrinkage=cfg.shrinkage, prior_floor=cfg.prior_floor)
+        E_hh = (cfg.expert_prior * Sigma_hh + F[:h] @ F[:h].T) / denom
+        E_rh = (cfg.expert_prior * cross + F[h:] @ F[:h].T) / denom
+        Phi_o = cfg.basis_human.phi(np.linspace(0.0, 1.0, y.shape[0]))
+        shift = conditioned_mean_shift(U @ c.mean[:h], U @ E_hh @ U.T, E_rh @ U.T, Phi_o, y, self._noise())
+        return c.mean[h:], shift
 
     def _prefix_model(self) -> "_PrefixModel":
         """The components' human means and the gating covariance as the samples of a motion see them.

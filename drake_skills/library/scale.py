@@ -219,6 +219,16 @@ def gating_covariance(scale: SharedScale, n_human: int, *, prior_scale: float, p
     return _shrunk(S, shrinkage, float(np.mean(scale.total_mean[:h] ** 2)) if h else 0.0)
 
 
+def cross_covariance(scale: SharedScale, n_human: int, *, prior_strength: float, shrinkage: float) -> np.ndarray:
+    """The robot-human block ``[h:, :h]`` of :func:`shared_covariance`, shape (d - h, h), without the rest.
+
+    Off the diagonal the prior adds nothing and the shrinkage only scales, so the block is
+    ``(1 - shrinkage) pooled[h:, :h] / (prior_strength + dof)``.
+    """
+    h = n_human
+    return (1.0 - shrinkage) * scale.pooled[h:, :h] / (prior_strength + scale.dof)
+
+
 def shared_covariance(scale: SharedScale, n_human: int, *, prior_scale: float, prior_strength: float,
                       shrinkage: float, prior_floor: float = 0.0) -> np.ndarray:
     """The shared within-skill covariance of the stacked weights ``[w_h; w_r]``, shape (d, d).

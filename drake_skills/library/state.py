@@ -118,6 +118,8 @@ class LibraryState:
     gain: ConditioningGain | None = None
 
     def __post_init__(self):
+        if not isinstance(self.config, LibraryConfig):
+            raise ValueError(f"config must be a LibraryConfig, got {type(self.config).__name__}")
         if self.gain is not None:
             if not isinstance(self.gain, ConditioningGain):
                 raise ValueError(f"gain must be a ConditioningGain or None, got {type(self.gain).__name__}")
@@ -129,8 +131,6 @@ class LibraryState:
                                  f"seen {self.n_seen}")
         if self.trained_with_workspace is not None and not isinstance(self.trained_with_workspace, bool):
             raise ValueError(f"trained_with_workspace must be True, False or None, got {self.trained_with_workspace!r}")
-        if not isinstance(self.config, LibraryConfig):
-            raise ValueError(f"config must be a LibraryConfig, got {type(self.config).__name__}")
         if (self.dim_human is None) != (self.dim_robot is None):
             raise ValueError(f"dim_human and dim_robot are both None or both set, got "
                              f"{self.dim_human!r} and {self.dim_robot!r}")

@@ -396,7 +396,7 @@ def _state_of(meta: dict, version: int, arrays, where: str) -> LibraryState:
         with_ws = meta.get("trained_with_workspace")  # optional key: schema 3 without it reads as unknown
         if with_ws is not None and not isinstance(with_ws, bool):
             raise ValueError(f"trained_with_workspace must be true, false or null, got {with_ws!r}")
-        gain = _gain_of(meta.get("gain"))  # optional key: files written before it read as None (Eq. 13 as is)
+        gain = _gain_of(meta.get("gain"), config.n_basis_robot)  # optional: older files read as None (Eq. 13)
     except (KeyError, TypeError, ValueError) as exc:
         raise ValueError(f"{where}: bad metadata ({type(exc).__name__}: {exc})") from None
     K = len(comps_meta)
@@ -457,14 +457,20 @@ def _state_of(meta: dict, version: int, arrays, where: str) -> LibraryState:
                        gain)
 
 
-def _gain_of(g) -> ConditioningGain | None:
-    """The ``gain`` entry of the metadata: null, or ``{"count", "normal", "target"}`` (checked by the class)."""
+def _gain_of(g, n_basis: int) -> ConditioningGain | None:
+    """The ``gain`` entry of the metadata: null, or ``{"count", "normal", "target"}`` of numbers (checked by the class)."""
     if g is None:
         return None
     if not isinstance(g, dict) or set(g) != {"count", "normal", "target"}:
         raise ValueError("gain must be null or an object with count, normal and target")
-    if isinstance(g["count"], bool) or not isinstance(g["count"], int):
-        raise ValueError(f"gain count must be an integer, got {g['count']!r}")
+    for name, shape in (("normal", (n_basis, n_basis)), ("target", (n_basis,))):
+        rows = g[name] if name == "normal" else [g[name]]
+        if not isinstance(rows, list) or len(rows) != (n_basis if name == "normal" else 1) or not all(
+                isinstance(row, list) and len(row) == n_basis for row in rows):
+            raise ValueError(f"gain {name} must be {' x '.join(map(str, shape))} numbers for the config's "
+                             f"{n_basis} robot basis functions")
+        if not all(type(v) in (int, float) for row in rows for v in row):
+            raise ValueError(f"gain {name} holds something other than numbers")
     return ConditioningGain(np.array(g["normal"], dtype=float), np.array(g["target"], dtype=float), g["count"])
 
 

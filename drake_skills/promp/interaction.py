@@ -75,6 +75,17 @@ def condition_on_observations(mean, cov, Phi_o, y_obs, noise_var: float, *, star
     return mean_new, symmetrize(cov_new)
 
 
+def conditioned_mean_shift(mean_h, cov_hh, cov_xh, Phi_o, y_obs, noise_var: float) -> np.ndarray:
+    """How far Eq. (13) moves the mean of other weights ``x``: ``mean_x_new - mean_x``, shape (n_x,).
+
+    ``cov_hh`` (h, h) and ``cov_xh`` (n_x, h) are blocks of the prior covariance; the
+    shift equals ``condition_on_observations(...)[0] - mean[start:]`` without computing
+    the posterior covariance (what learning needs, ``library.gain``).
+    """
+    _, u, _, A = _observation_terms(mean_h, cov_hh, Phi_o, y_obs, noise_var)
+    return cov_xh @ np.linalg.solve(A, u)
+
+
 def observation_log_likelihood(mean_h, cov_hh, Phi_o, y_obs, noise_var: float):
     """Marginal ``log N(vec(y_obs) | H^T mu_h, sigma^2 I + H^T Sigma_hh H)``.
 

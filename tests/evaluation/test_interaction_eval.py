@@ -152,6 +152,14 @@ def test_development_splits_hold_out_the_rest_of_every_task_and_repeat_from_the_
         assert sorted(d.name for d in taught + held) == sorted(d.name for d in train)  # a partition
         assert [d.task for d in taught] == ["a"] * 6 + ["b"] * 6 + ["c"] * 6  # tasks in sorted order
     assert len({tuple(d.name for d in held) for _, held in splits}) == 3  # the draws differ
+    # draw i shuffles each task (sorted) with default_rng(100 + i): the splits behind RESULTS.md's figures
+    rng = np.random.default_rng(101)
+    pinned = []
+    for task in ("a", "b", "c"):
+        idx = [i for i, d in enumerate(train) if d.task == task]
+        rng.shuffle(idx)
+        pinned += [train[i].name for i in idx[:6]]
+    assert [d.name for d in splits[1][0]] == pinned
     again = development_splits(train, draws=3, taught_per_task=6)
     assert [[d.name for d in taught] for taught, _ in again] == [[d.name for d in taught] for taught, _ in splits]
     with pytest.raises(ValueError, match=r"tasks \{'c': 7\} have no more than 7"):

@@ -75,7 +75,8 @@ def test_a_file_declaring_huge_arrays_is_refused_before_anything_is_allocated(li
     many = [dict(comp, id=i, subclusters=[dict(comp["subclusters"][0]), None]) for i in range(5_000)]
     config = dict(meta["config"], n_basis_human=1000, n_basis_robot=1000)
     _rewrite(good, tmp_path / "huge.npz", meta={"components": many, "next_id": 5_000, "config": config,
-                                               "dim_human": 3, "dim_robot": 7, "n_seen": 5_000})
+                                               "dim_human": 3, "dim_robot": 7, "n_seen": 5_000,
+                                               "gain": None})  # (a gain of the old basis would be refused first)
     assert (tmp_path / "huge.npz").stat().st_size < 10 * 2 ** 20
     read = []
     real_load = np.load
