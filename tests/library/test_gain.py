@@ -277,3 +277,19 @@ def test_the_blocks_the_fit_uses_equal_the_full_computation():
     m, _ = condition_on_observations(mean, cov, Phi, y, 0.3, start=h)
     np.testing.assert_allclose(conditioned_mean_shift(mean[:h], cov[:h, :h], cov[h:, :h], Phi, y, 0.3),
                                m - mean[h:], rtol=1e-10, atol=1e-12)
+
+
+def test_the_gains_are_computed_once_per_record_and_read_only():
+    rng = np.random.default_rng(8)
+    g = ConditioningGain.empty(B).add(rng.normal(size=(2, B)), rng.normal(size=(2, B)), np.eye(B))
+    lam = g.gains()
+    assert g.gains() is lam and not lam.flags.writeable
+    assert g.add(np.ones((2, B)), np.ones((2, B)), np.eye(B)).gains() is not lam  # a new record, a new fit
+
+
+def test_a_fit_that_overflows_is_an_error_not_a_gain():
+    g = ConditioningGain(1e-300 * np.eye(B), np.full(B, 1e300), 1)  # valid, but its solution is inf
+    with pytest.raises(ValueError, match=r"^conditioning gain: the fit is not finite \(the record overflows\)$"):
+        g.gains()
+    zero = ConditioningGain(np.zeros((B, B)), np.zeros(B), 3)  # three corrections of zero: nothing learned
+    assert np.array_equal(zero.gains(), np.ones(B))
