@@ -73,11 +73,7 @@ class ConditioningGain:
             raise ValueError(f"conditioning gain: count must be an integer >= 0, got {self.count!r}")
         if self.count == 0 and (A.any() or b.any()):
             raise ValueError("conditioning gain: a record of 0 demonstrations must be zero")
-        A.setflags(write=False)
-        b.setflags(write=False)
-        object.__setattr__(self, "normal", A)
-        object.__setattr__(self, "target", b)
-        object.__setattr__(self, "count", int(self.count))
+        _freeze(self, A, b, int(self.count))
 
     @classmethod
     def empty(cls, n_basis: int) -> "ConditioningGain":
@@ -101,12 +97,7 @@ class ConditioningGain:
         # a sum of the record and a positive semidefinite term: valid by construction, so the
         # checks of __post_init__ (an eigendecomposition, a quarter of a partial_fit) are skipped
         out = object.__new__(ConditioningGain)
-        A = 0.5 * (A + A.T)
-        A.setflags(write=False)
-        b.setflags(write=False)
-        object.__setattr__(out, "normal", A)
-        object.__setattr__(out, "target", b)
-        object.__setattr__(out, "count", self.count + 1)
+        _freeze(out, 0.5 * (A + A.T), b, self.count + 1)
         return out
 
     def gains(self) -> np.ndarray:
@@ -129,6 +120,15 @@ class ConditioningGain:
         if not np.isfinite(lam).all():
             raise ValueError("conditioning gain: the fit is not finite (the record overflows)")
         return np.clip(lam, 0.0, 1.0)
+
+
+def _freeze(record: ConditioningGain, normal: np.ndarray, target: np.ndarray, count: int) -> None:
+    """Set the fields of a (frozen) record, its arrays made read-only."""
+    normal.setflags(write=False)
+    target.setflags(write=False)
+    object.__setattr__(record, "normal", normal)
+    object.__setattr__(record, "target", target)
+    object.__setattr__(record, "count", count)
 
 
 def scale_correction(prior_mean, prior_cov, mean, cov, gains) -> tuple[np.ndarray, np.ndarray]:

@@ -272,7 +272,7 @@ class RecognitionMixin:
         """
         cfg = self.config
         h = self.n_human
-        U = np.kron(np.eye(self.dim_human_), _unshrink(cfg.basis_human, int(cfg.n_samples), float(cfg.ridge)))
+        U = self._unshrink_human()
         F, denom = c.cluster.factor, cfg.expert_prior + c.support - 1.0
         cross = cross_covariance(self._scale, h, prior_strength=cfg.prior_strength, shrinkage=cfg.shrinkage)
         Sigma_hh = gating_covariance(self._scale, h, prior_scale=cfg.prior_scale, prior_strength=cfg.prior_strength,
@@ -282,6 +282,11 @@ class RecognitionMixin:
         Phi_o = cfg.basis_human.phi(np.linspace(0.0, 1.0, y.shape[0]))
         shift = conditioned_mean_shift(U @ c.mean[:h], U @ E_hh @ U.T, E_rh @ U.T, Phi_o, y, self._noise())
         return c.mean[h:], shift
+
+    def _unshrink_human(self) -> np.ndarray:
+        """``S^-1`` of every human dimension, block diagonal (h, h): the ridge undone (see :meth:`_prefix_model`)."""
+        cfg = self.config
+        return np.kron(np.eye(self.dim_human_), _unshrink(cfg.basis_human, int(cfg.n_samples), float(cfg.ridge)))
 
     def _prefix_model(self) -> "_PrefixModel":
         """The components' human means and the gating covariance as the samples of a motion see them.
@@ -298,9 +303,7 @@ class RecognitionMixin:
         compares weights with weights and needs no such step.
         """
         def compute():
-            cfg = self.config
-            Sinv = _unshrink(cfg.basis_human, int(cfg.n_samples), float(cfg.ridge))
-            U = np.kron(np.eye(self.dim_human_), Sinv)
+            U = self._unshrink_human()
             return _PrefixModel(self._components.means_h @ U.T, U @ self._metric().chol, U)
         return self._cached("prefix_model", compute)
 
