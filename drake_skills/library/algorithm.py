@@ -369,10 +369,17 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
     recognized = None
     changed: set[int] = set()
 
+    last: list = [None, None]  # (scale, its metric): the merge loop and the split step often see one scale
+
+    def metric_of(s: SharedScale) -> Metric:
+        if last[0] is not s:
+            last[:] = [s, gating_metric(s, h, config)]
+        return last[1]
+
     # 1-2. novelty against the scale learned so far (totals including this demonstration)
     novel = True
     if len(work.items):
-        metric = gating_metric(scale, h, config)
+        metric = metric_of(scale)
         logp, d2 = gating_scores(w[:h], comps, metric)
         fits = ~rule.novel(logp, d2, h)
         novel = not fits.any()
@@ -410,7 +417,7 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
 
     # 4. merge, starting from what changed (Eqs. 10-11)
     while len(work.items) > 1 and changed:
-        metric = gating_metric(scale, h, config)
+        metric = metric_of(scale)
         Z = metric.whiten(work.means_h)
         best = None
         for cid in sorted(changed):
@@ -441,7 +448,7 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
     # 5. split a component whose halves have grown apart (all components: the scale may
     #    have shrunk under one that did not change)
     if len(work.items):
-        metric = gating_metric(scale, h, config)
+        metric = metric_of(scale)
         sa, sb = work.sub_support[:, 0], work.sub_support[:, 1]
         both = sb > 0
         if both.any():

@@ -457,7 +457,11 @@ class SkillLibrary(RecognitionMixin, FileMixin):
             raise ValueError(f"encode takes a Demonstration, got {type(demo).__name__}")
         cfg = self.config
         where = f"demo {demo.name!r}" if demo.name else "demonstration"
-        y_h = self.human_samples(demo.human, workspace=workspace, where=where)
+        return self._weights(demo, self.human_samples(demo.human, workspace=workspace, where=where))
+
+    def _weights(self, demo: Demonstration, y_h: np.ndarray) -> np.ndarray:
+        """:meth:`encode` of ``demo`` whose human samples (Eq. 14, resampled by arc length) are ``y_h``."""
+        cfg = self.config
         parts = [ridge_weights(y_h, cfg.basis_human, cfg.ridge)]
         if demo.robot is not None:
             y_r = resample_in_time(demo.t, demo.robot, cfg.n_samples)
@@ -504,17 +508,17 @@ class SkillLibrary(RecognitionMixin, FileMixin):
         if not isinstance(demo, Demonstration):
             raise ValueError(f"partial_fit takes a Demonstration, got {type(demo).__name__}")
         self._check_dims(demo)
-        w = self.encode(demo, workspace)
-        if not np.isfinite(w).all():
-            raise ValueError("demonstration gives non-finite weights")
+        cfg = self.config
         where = f"demo {demo.name!r}" if demo.name else "demonstration"
         normalized_path = self._normalized(demo.human, workspace, False, where)
+        y_h = normalized_path.resample(cfg.n_samples)   # what encode() would compute, computed once
+        w = self._weights(demo, y_h)
+        if not np.isfinite(w).all():
+            raise ValueError("demonstration gives non-finite weights")
         self._guard(normalized_path.y, workspace, False, whole=True, query=False, where=where)
         path = normalized_path.length
         n = self._n_seen
         h = demo.dim_human * self.config.n_basis_human
-        cfg = self.config
-        y_h = self.human_samples(demo.human, workspace=workspace, where=where)
         fit = cfg.basis_human.phi_uniform(y_h.shape[0]) @ w[:h].reshape(demo.dim_human, -1).T
         fit_residual = float(np.mean((y_h - fit) ** 2))
         comps = self._components if self._scale is not None else Components.of([], h)

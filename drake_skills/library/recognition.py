@@ -31,7 +31,7 @@ from drake_skills.library.gain import scale_correction
 from drake_skills.library.novelty import Chi2Rule, chi2_ppf
 from drake_skills.library.prefix import PHASE_GRID, phase_band, score_at_phase, score_prefix
 from drake_skills.library.prefix_bound import prefix_candidates
-from drake_skills.library.scale import cross_covariance, gating_covariance, observation_noise
+from drake_skills.library.scale import cross_covariance, observation_noise
 from drake_skills.library.views import Recognition, UnknownSkillError
 from drake_skills.promp.basis import GaussianBasis, ridge_weights, trajectory_covariance
 from drake_skills.promp.interaction import condition_on_observations, conditioned_mean_shift
@@ -275,18 +275,17 @@ class RecognitionMixin:
         U = self._unshrink_human()
         F, denom = c.cluster.factor, cfg.expert_prior + c.support - 1.0
         cross = cross_covariance(self._scale, h, prior_strength=cfg.prior_strength, shrinkage=cfg.shrinkage)
-        Sigma_hh = gating_covariance(self._scale, h, prior_scale=cfg.prior_scale, prior_strength=cfg.prior_strength,
-                                     shrinkage=cfg.shrinkage, prior_floor=cfg.prior_floor)
+        Sigma_hh = self._metric().cov   # gating_covariance of the current scale, cached per library version
         E_hh = (cfg.expert_prior * Sigma_hh + F[:h] @ F[:h].T) / denom
         E_rh = (cfg.expert_prior * cross + F[h:] @ F[:h].T) / denom
-        Phi_o = cfg.basis_human.phi(np.linspace(0.0, 1.0, y.shape[0]))
+        Phi_o = cfg.basis_human.phi_uniform(y.shape[0])
         shift = conditioned_mean_shift(U @ c.mean[:h], U @ E_hh @ U.T, E_rh @ U.T, Phi_o, y, self._noise())
         return c.mean[h:], shift
 
     def _unshrink_human(self) -> np.ndarray:
         """``S^-1`` of every human dimension, block diagonal (h, h): the ridge undone (see :meth:`_prefix_model`)."""
         cfg = self.config
-        return np.kron(np.eye(self.dim_human_), _unshrink(cfg.basis_human, int(cfg.n_samples), float(cfg.ridge)))
+        return _unshrink_block(cfg.basis_human, int(cfg.n_samples), float(cfg.ridge), int(self.dim_human_))
 
     def _prefix_model(self) -> "_PrefixModel":
         """The components' human means and the gating covariance as the samples of a motion see them.
@@ -352,6 +351,14 @@ def _unshrink(basis: GaussianBasis, n_samples: int, ridge: float) -> np.ndarray:
     Sinv = np.linalg.pinv(S)
     Sinv.setflags(write=False)
     return Sinv
+
+
+@lru_cache(maxsize=16)
+def _unshrink_block(basis: GaussianBasis, n_samples: int, ridge: float, dim: int) -> np.ndarray:
+    """``I_dim (x) S^-1`` (dim N, dim N), block diagonal: :func:`_unshrink` for every dimension (cached, read-only)."""
+    U = np.kron(np.eye(dim), _unshrink(basis, n_samples, ridge))
+    U.setflags(write=False)
+    return U
 
 
 @dataclass(frozen=True, eq=False)

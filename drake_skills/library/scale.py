@@ -178,8 +178,10 @@ class SharedScale:
     def block_variances(self, n_human: int) -> tuple[float, float]:
         """Mean variance per weight over all demonstrations: human block, robot block."""
         var = self.total_m2 / max(self.n, 1)
-        t_h = float(np.mean(var[:n_human])) if n_human else 0.0
-        t_r = float(np.mean(var[n_human:])) if var.shape[0] > n_human else 0.0
+        d = var.shape[0]
+        # sum / count is np.mean's own arithmetic, without its dispatch (this runs several times per update)
+        t_h = float(var[:n_human].sum()) / n_human if n_human else 0.0
+        t_r = float(var[n_human:].sum()) / (d - n_human) if d > n_human else 0.0
         return t_h, t_r
 
 
@@ -197,7 +199,7 @@ def observation_noise(scale: SharedScale, floor: float) -> float:
 
 def _blend(P: np.ndarray, dof: float, W0_diag: np.ndarray, prior_strength: float) -> np.ndarray:
     S = P / (prior_strength + dof)
-    S[np.diag_indices_from(S)] += prior_strength * W0_diag / (prior_strength + dof)
+    S.reshape(-1)[::S.shape[0] + 1] += prior_strength * W0_diag / (prior_strength + dof)  # the diagonal, in place
     return S
 
 
@@ -205,7 +207,7 @@ def _shrunk(S: np.ndarray, shrinkage: float, floor_scale: float) -> np.ndarray:
     d = S.shape[0]
     m = float(np.trace(S)) / d if d else 0.0
     out = (1.0 - shrinkage) * S
-    out[np.diag_indices_from(out)] += shrinkage * m + _FLOOR * (m + floor_scale) + 1e-300
+    out.reshape(-1)[::d + 1] += shrinkage * m + _FLOOR * (m + floor_scale) + 1e-300  # the diagonal, in place
     return out
 
 
