@@ -92,6 +92,21 @@ __all__ = ["Component", "ComponentState", "DataWarning", "LibraryChangedError", 
 log = logging.getLogger(__name__)
 
 
+def _check_finite_step(step, w: np.ndarray, where: str) -> None:
+    """Refuse an update whose arithmetic overflowed (finite but huge values): the library is not touched."""
+    sc = step.scale
+    ok = np.isfinite(sc.fit_m2) and all(np.isfinite(a).all() for a in (sc.total_mean, sc.total_m2, sc.pooled))
+    if ok:
+        comps = step.components
+        touched = set(step.created) | set(step.updated) | {k for pair in step.merged for k in pair} | \
+            {k for pair in step.split for k in pair}
+        rows = np.flatnonzero(np.isin(comps.id_array, list(touched)))   # merged-away ids are gone: not found
+        ok = all(np.isfinite(comps.items[i].cluster.mean).all() and np.isfinite(comps.items[i].cluster.factor).all()
+                 for i in rows)
+    if not ok:
+        raise ValueError(f"{where}: its values are too large for the library's arithmetic (the update overflows; "
+                         f"largest |weight| {np.abs(w).max():.3g}); check the units. The library is unchanged")
+
 
 @lru_cache(maxsize=8)
 def _robot_gram(basis: GaussianBasis, n_samples: int) -> np.ndarray:
@@ -376,7 +391,11 @@ class SkillLibrary(RecognitionMixin, FileMixin):
                 human = ws.normalize(human, subtract_start=cfg.subtract_start)
             elif cfg.subtract_start:
                 human = human - human[0]
-        vertices, s = arc_length(human, cfg.resample_tolerance)
+        with np.errstate(over="ignore", invalid="ignore"):  # an overflowing path is refused just below
+            vertices, s = arc_length(human, cfg.resample_tolerance)
+        if not np.isfinite(s[-1]):
+            raise ValueError(f"{where + ': ' if where else ''}human positions are too large: their path length "
+                             f"overflows (largest |value| {np.abs(human).max():.3g}); check the units and the workspace")
         if not s[-1] > 0:
             raise ValueError(f"{where + ': ' if where else ''}human trajectory does not move: its path length is 0")
         path = _Path(np.array(human, dtype=float), vertices, s)  # a copy: the caller's array may change later
@@ -523,14 +542,20 @@ class SkillLibrary(RecognitionMixin, FileMixin):
         fit_residual = float(np.mean((y_h - fit) ** 2))
         comps = self._components if self._scale is not None else Components.of([], h)
         scale = self._scale if self._scale is not None else SharedScale.empty(w.shape[0])
-        step = fold_in(comps, scale, w, demo.duration, path, n_human=h, config=self.config, rule=self._rule,
-                       next_id=self._next_id, demo_index=n, fit_residual=fit_residual)
+        with np.errstate(over="ignore", invalid="ignore"):  # an overflowing update is refused below
+            step = fold_in(comps, scale, w, demo.duration, path, n_human=h, config=self.config, rule=self._rule,
+                           next_id=self._next_id, demo_index=n, fit_residual=fit_residual)
+        _check_finite_step(step, w, where)
         gain = self._gain
         if cfg.conditioning_gain and step.recognized is not None and demo.robot is not None:
             # Eq. (13) of the component that explained it, before it learns from it (library.gain)
-            prior_w, shift = self._correction(self._model(step.recognized), y_h)
-            gain = gain.add(shift.reshape(demo.dim_robot, -1), (w[h:] - prior_w).reshape(demo.dim_robot, -1),
-                            _robot_gram(cfg.basis_robot, cfg.n_samples))
+            try:
+                with np.errstate(over="ignore", invalid="ignore"):  # gain.add refuses what overflowed
+                    prior_w, shift = self._correction(self._model(step.recognized), y_h)
+                    gain = gain.add(shift.reshape(demo.dim_robot, -1), (w[h:] - prior_w).reshape(demo.dim_robot, -1),
+                                    _robot_gram(cfg.basis_robot, cfg.n_samples))
+            except ValueError as exc:
+                raise ValueError(f"{where}: {exc}; the library is unchanged") from None
         # commit: nothing above touched self
         self._components, self._scale, self._gain = step.components, step.scale, gain
         self._history.extend(step.history)

@@ -413,6 +413,29 @@ def test_failed_update_leaves_library_exactly_as_it_was(tmp_path, monkeypatch):
     assert before.read_bytes() == after.read_bytes()
 
 
+@pytest.mark.parametrize("part", ["robot", "human"])
+def test_an_update_that_overflows_is_refused_naming_the_demo_and_changes_nothing(tmp_path, part):
+    # finite values so large that the scale's sums of squares overflow (found by a cold review: the
+    # library took them and could never be saved again)
+    import warnings
+
+    lib = _taught_library(tasks=(0, 1))
+    before = tmp_path / "before.npz"
+    lib.save(before)
+    good = synthetic_demo(0, np.random.default_rng(11))
+    huge = Demonstration(t=good.t, human=good.human * (1e160 if part == "human" else 1.0),
+                         robot=good.robot * (1e160 if part == "robot" else 1.0), name="huge.npz")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # no overflow warning escapes either
+        with pytest.raises(ValueError, match=r"demo 'huge.npz': .*too large"):
+            lib.partial_fit(huge)
+    after = tmp_path / "after.npz"
+    lib.save(after)
+    assert before.read_bytes() == after.read_bytes()
+    lib.partial_fit(synthetic_demo(0, np.random.default_rng(12)))  # and it still learns
+    assert lib.n_seen == 13
+
+
 def test_recognize_and_predict_reject_bad_input():
     lib = _taught_library(tasks=(0, 1))
     with pytest.raises(ValueError, match="NaN"):
