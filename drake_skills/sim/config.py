@@ -19,6 +19,7 @@ from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Optional, Union
 
+import yaml
 from pydrake.common.yaml import yaml_load, yaml_load_typed
 
 from drake_skills._checks import validated
@@ -163,6 +164,8 @@ def load_config(path: Union[str, Path, None] = None, *, defaults: Optional[SimCo
             raise ValueError(f"LibraryConfig fields {misplaced} must go under 'library:' next to SimConfig fields")
         return validated(yaml_load_typed(schema=SimConfig, filename=str(path),
                                          defaults=replace(defaults, library=replace(defaults.library))))
+    except yaml.YAMLError as exc:  # not YAML at all (a tab indent, an unclosed bracket, ...)
+        raise ValueError(f"{where} is not valid YAML: {' '.join(str(exc).split())}") from None
     except (RuntimeError, ValueError, TypeError) as exc:
         raise ValueError(f"{where}: {exc}") from None
 

@@ -52,6 +52,10 @@ def test_a_file_of_library_fields_alone_is_the_library_config(tmp_path):
     ("- 1\n- 2\n", "not a mapping"),
     ("library:\n  workspace: {lower: [], upper: []}\n", "too short"),
     ("subject_model: stylish\n", "subject_model must be one of"),
+    # not YAML at all: a clean error, not the parser's traceback (found by a cold review)
+    (": : bad yaml [\n", "is not valid YAML: .*line 1"),
+    ("ridge: 0.1\n\tn_samples: 5\n", "is not valid YAML: .*'\\\\t'"),
+    ("library:\n  ridge: [1, 2\n", "is not valid YAML"),
 ])
 def test_bad_settings_are_errors_naming_the_file_and_the_field(tmp_path, text, message):
     p = _write(tmp_path, text, "bad.yaml")
