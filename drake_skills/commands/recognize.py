@@ -71,8 +71,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"note: {note}")
     if not found:
         raise ValueError(f"no demonstrations (.npz or .csv) found in {', '.join(map(str, args.paths))}")
-    for d, _ in found:
-        check_layout(d, lib.dim_human_, lib.dim_robot_, f"the library '{args.library}'")
+    for d, _ in found:  # only the human part is used: a wrist-only recording is what recognition gets
+        check_layout(d, lib.dim_human_, lib.dim_robot_ if d.robot is not None else 0, f"the library '{args.library}'")
     finders = {}
     rows, preds, raw = [], [], []
     for d, root in found:
