@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import sys
 import warnings
 
@@ -98,6 +99,10 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    out = getattr(args, "out", None)
+    if out is not None and os.path.exists(out) and not os.path.isdir(out):
+        print(f"drake-skills {args.command}: error: --out '{out}' is a file, not a directory", file=sys.stderr)
+        return 1
     shown = warnings.showwarning
     warnings.showwarning = _show_warning
     try:

@@ -568,3 +568,42 @@ def test_recognize_of_an_untaught_task_says_unknown_and_predicts_nothing(dataset
     assert [(r["decision"], r["component"]) for r in rec["files"]] == [("unknown", None)]
     with np.load(out / "predictions.npz") as pred:
         assert pred["files"].shape == (0,)
+
+
+def test_learn_refuses_raw_metres_without_a_workspace_unless_told_and_writes_nothing(dataset, tmp_path, capsys):
+    # the salad subject in metres without its calibration: the settings' floor (0.4 normalized units)
+    # would take all five tasks for one skill (a cold review found one component for five tasks)
+    raw = tmp_path / "raw"
+    raw.mkdir()
+    for f in sorted((dataset / "train" / "subject1").glob("*.npz")):
+        if f.name != "calibration.npz":
+            shutil.copy(f, raw / f.name)
+    out = tmp_path / "out"
+    assert main(["learn", str(raw), "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "has no workspace and spans" in err and "far below the normalized range" in err and "--raw-units" in err
+    assert not out.exists()
+    assert main(["learn", str(raw), "--out", str(out), "--raw-units"]) == 0
+    assert SkillLibrary.load(out / "library.npz").n_seen == 3 * len(TASKS)
+    ws = tmp_path / "ws.json"   # with the workspace given, the same files learn without the flag
+    lo, hi = np.min([load_demo(f).human.min(0) for f in raw.glob("*.npz")], 0), \
+        np.max([load_demo(f).human.max(0) for f in raw.glob("*.npz")], 0)
+    ws.write_text(json.dumps({"lower": lo.tolist(), "upper": hi.tolist(), "scale": 10.0}))
+    assert main(["learn", str(raw), "--out", str(tmp_path / "out2"), "--workspace", str(ws)]) == 0
+
+
+def test_learn_and_out_mistakes_are_errors_that_name_the_file(dataset, tmp_path, capsys):
+    demo = dataset / "train" / "subject1" / "board_00.npz"
+    assert main(["learn", str(demo), "--out", str(tmp_path / "a")]) == 1
+    assert f"'{demo}' is a file: learn takes the folder" in capsys.readouterr().err
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    assert main(["learn", str(dataset / "train"), "--out", str(afile)]) == 1
+    assert f"--out '{afile}' is a file, not a directory" in capsys.readouterr().err
+    two = tmp_path / "two"
+    two.mkdir()
+    shutil.copy(demo, two / demo.name)
+    (two / "workspace.json").write_text(json.dumps({"lower": [0, 0], "upper": [1, 1], "scale": 10}))
+    assert main(["learn", str(two), "--out", str(tmp_path / "b")]) == 1
+    err = capsys.readouterr().err
+    assert "workspace.json' is 2-D but demo" in err and "board_00.npz' has 3 human columns" in err

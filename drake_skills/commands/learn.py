@@ -38,6 +38,10 @@ def register(sub) -> None:
     add_config(p)  # for a new library only; an extended one keeps its own
     add_seed(p, 0, "seed of the presentation order (default 0)")
     p.add_argument("--in-order", action="store_true", help="present the demonstrations in file order, not shuffled")
+    p.add_argument("--raw-units", action="store_true",
+                   help="learn demonstrations without a workspace even when their motions span far less or far "
+                        "more than the normalized range (e.g. raw metres or millimetres); without it learn "
+                        "refuses them, as the library's settings would merge or split their skills")
     p.set_defaults(func=run)
 
 
@@ -50,6 +54,9 @@ def run(args: argparse.Namespace) -> int:
     from drake_skills.library.labels import TaskVotes
     from drake_skills.sim.config import load_library_config
 
+    if args.demos_dir.is_file():
+        raise ValueError(f"'{args.demos_dir}' is a file: learn takes the folder of demonstrations it is in "
+                         f"(learn {args.demos_dir.parent})")
     if not args.demos_dir.is_dir():
         raise FileNotFoundError(f"demonstration directory '{args.demos_dir}' does not exist")
     found, notes = scan_paths([args.demos_dir])
@@ -76,6 +83,7 @@ def run(args: argparse.Namespace) -> int:
         check_layout(d, *dims, declared)
     find = WorkspaceFinder(args.workspace, args.demos_dir)
     workspaces = [find(d.name) for d in demos]
+    _check_units(lib, demos, workspaces, args.raw_units)
     with contextlib.ExitStack() as stack:
         try:
             stack.enter_context(FileLock(out_file, timeout=0))
@@ -90,6 +98,37 @@ def run(args: argparse.Namespace) -> int:
         if args.library is not None and tasks_file(args.library).is_file():
             votes = TaskVotes.from_dict(json.loads(tasks_file(args.library).read_text()))
         return _learn(args, lib, votes, demos, workspaces, notes, out_file, in_place)
+
+
+def _check_units(lib, demos, workspaces, raw_units: bool) -> None:
+    """Refuse a workspace of other dimensions (naming its file) and, unless ``raw_units``, raw-unit motions.
+
+    Without a workspace a demonstration is taken as already normalized ([0, 10]); in raw metres
+    the library's settings see every skill as one (salad subject 1 in metres: one component for
+    five tasks), in millimetres as many.
+    """
+    from drake_skills.library.guards import data_warning
+
+    for d, (ws, source) in zip(demos, workspaces):
+        if ws is not None and ws.dim != d.dim_human:
+            raise ValueError(f"workspace '{source}' is {ws.dim}-D but demo '{d.name}' has {d.dim_human} human "
+                             f"columns")
+    if raw_units or lib.config.workspace is not None:
+        return
+    for d, (ws, _) in zip(demos, workspaces):
+        if ws is not None:
+            continue
+        y = d.human - d.human[0] if lib.config.subtract_start else d.human
+        found = data_warning(y, None, False, whole=True, query=False, where=f"demo '{d.name}'",
+                             trained_with_workspace=False)
+        if found is not None and found[0] == "units":
+            extent = float(np.ptp(y, axis=0).max())
+            side = "below" if " below " in found[2] else "above"
+            raise ValueError(f"demo '{d.name}' has no workspace and spans {extent:.3g} units, far {side} the "
+                             f"normalized range [0, 10] the library's settings assume (a whole motion spans 1 to 100 "
+                             f"units in it): raw metres or millimetres? Nothing was learned: give the workspace "
+                             f"(--workspace FILE, or a workspace.json or calibration.npz beside the "
+                             f"demonstrations), or --raw-units to learn them as they are")
 
 
 def _refuse_to_replace(out_file: Path, in_place: bool, force: bool) -> None:

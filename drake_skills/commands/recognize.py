@@ -23,8 +23,10 @@ def register(sub) -> None:
                     "more than one skill fits and none clearly, or unknown: no skill fits), the skill's task "
                     "name (from the library's .tasks.json written by `learn`) and component id, d2 (squared "
                     "Mahalanobis distance to the best or nearest component; above the novelty limit printed "
-                    "under the table a motion is unknown) and the confidence. Only the human part of each file "
-                    "is used. Writes OUT/recognition.json and OUT/recognition.csv (the table) and, for a "
+                    "under the table a motion is unknown) and the confidence (the best component's posterior among "
+                    "the components that fit; components with the same robot response pool theirs for the "
+                    "decision, so a skill may show less than 0.99). Only the human part of each file is used "
+                    "(a wrist-only file is fine). Writes OUT/recognition.json and OUT/recognition.csv (the table) and, for a "
                     "library with a robot part, OUT/predictions.npz: the conditioned robot trajectory (Eq. 13) "
                     "of every file decided 'skill' in this run, named by file and component.")
     p.add_argument("library", type=Path, metavar="LIB", help="library file (.npz) from `drake-skills learn`")

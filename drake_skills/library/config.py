@@ -40,7 +40,8 @@ class LibraryConfig:
     """Hyperparameters of the skill library, named as in the paper.
 
     One default serves every data set we have (LASA letters, the simulated salad
-    subjects, real human-robot interactions; RESULTS.md): nothing in it is a length.
+    subjects, real human-robot interactions; RESULTS.md). Its one length, ``prior_floor``,
+    is in normalized units (the workspace spans ``[0, 10]``): give human data a workspace.
     The novelty, merge and split tests are chi-square quantiles of Mahalanobis
     distances under a within-skill covariance the library learns from the
     demonstrations it has absorbed (:mod:`drake_skills.library.scale`), so they
@@ -90,8 +91,9 @@ class LibraryConfig:
     # --- the shared within-skill scale (replaces the paper's fixed Sigma_init) ---
     #: rho: before the library has pooled any within-skill scatter, a skill is assumed
     #: to spread rho times the RMS spread (per weight) of all demonstrations seen so
-    #: far. Scale free: the same in metres, millimetres or normalized units, for 4
-    #: skills or 1000 (chosen on held-out data, RESULTS.md "Choosing the defaults").
+    #: far. A ratio: the same for 4 skills or 1000 and in any units (chosen on held-out
+    #: data, RESULTS.md "Choosing the defaults"); ``prior_floor`` below is not, so human
+    #: data must be normalized (a workspace).
     prior_scale: float = 0.3
     #: ... and at least this much (normalized units, the workspace spans 10): the prior of a
     #: library that has seen only one skill, whose own spread then says nothing about

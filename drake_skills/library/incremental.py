@@ -130,7 +130,8 @@ class SkillLibrary(RecognitionMixin, FileMixin):
     ----------
     config : LibraryConfig, optional
         Hyperparameters; the defaults serve letters, the salad scenario and real
-        human-robot interactions alike (nothing in them is a length). The library
+        human-robot interactions alike (nothing in them is a length in your units: human
+        data are normalized by a workspace, Eq. 14). The library
         keeps a copy that cannot change (:meth:`LibraryConfig.sealed`): later changes
         to ``config`` do not reach it, and ``lib.config.ridge = ...`` raises.
 
