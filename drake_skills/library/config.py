@@ -158,7 +158,11 @@ class LibraryConfig:
         ints = {"n_samples": 4, "n_basis_human": 2, "n_basis_robot": 2, "merge_min_age": 0, "delete_min_age": 0}
         for name, lo in ints.items():
             v = getattr(self, name)
-            if isinstance(v, bool) or int(v) != v or v < lo:
+            try:
+                whole = not isinstance(v, bool) and int(v) == v
+            except (TypeError, ValueError, OverflowError):  # nan, inf, a string
+                whole = False
+            if not whole or v < lo:
                 raise ValueError(f"LibraryConfig.{name} must be an integer >= {lo}, got {v!r}")
             setattr(self, name, int(v))
         positive = ["basis_width", "prior_scale", "prior_strength", "expert_prior", "observation_noise"]
@@ -179,9 +183,11 @@ class LibraryConfig:
         if self.split_quantile <= self.merge_quantile:
             raise ValueError(f"LibraryConfig.split_quantile ({self.split_quantile}) must be above merge_quantile "
                              f"({self.merge_quantile}), or a merge would be split again at once")
-        if not isinstance(self.conditioning_gain, (bool, np.bool_)):
-            raise ValueError(f"LibraryConfig.conditioning_gain must be true or false, got {self.conditioning_gain!r}")
-        self.conditioning_gain = bool(self.conditioning_gain)
+        for name in ("basis_normalized", "subtract_start", "conditioning_gain"):
+            v = getattr(self, name)
+            if not isinstance(v, (bool, np.bool_)):   # "no" would act as true
+                raise ValueError(f"LibraryConfig.{name} must be true or false, got {v!r}")
+            setattr(self, name, bool(v))
         if self.novelty_test not in NOVELTY_TESTS:
             raise ValueError(f"LibraryConfig.novelty_test must be one of {NOVELTY_TESTS}, got {self.novelty_test!r}")
         self.workspace = _as_workspace(self.workspace)

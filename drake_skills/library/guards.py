@@ -49,8 +49,9 @@ def data_warning(y: np.ndarray, ws: Workspace | None, normalized: bool, *, whole
         call = "recognize()/predict_robot()" if query else "partial_fit()"
         return ("workspace", WorkspaceWarning,
                 f"{where + ': ' if where else ''}{call} without a workspace on a library trained with "
-                f"one: the motion is taken in raw units and will likely be 'unknown'; pass workspace= "
-                f"(the subject's Workspace) or, for samples already in normalized units, normalized=True")
+                f"one: the motion is taken in raw units and will likely be 'unknown'; give the subject's "
+                f"workspace (workspace= in Python, --workspace or a workspace.json / calibration.npz beside the "
+                f"files on the command line) or, for samples already in normalized units, normalized=True")
     scale = ws.scale if ws is not None else 10.0
     extent = float(np.ptp(y, axis=0).max())
     low, high = UNITS_RANGE[0] * scale, UNITS_RANGE[1] * scale

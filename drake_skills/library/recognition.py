@@ -64,6 +64,19 @@ class RecognitionMixin:
         workspace : Workspace, optional
         normalized : bool
             ``human`` is already in the library's normalized units (Eq. 14 applied).
+
+        Returns
+        -------
+        Recognition
+            ``.status``, ``.component`` (None unless "skill"), ``.phase`` and the
+            per-component statistics.
+
+        Raises
+        ------
+        ValueError
+            For bad input (NaN, one sample, wrong columns) and for a beginning that does
+            not move yet (path length 0: a wrist still at rest; a live caller waits for
+            the first movement, as the Drake gating does), or before anything was learned.
         """
         self._check_fitted()
         if observed_fraction is not None:

@@ -501,6 +501,14 @@ def test_config_rejects_bad_values_and_round_trips():
         LibraryConfig.from_dict({"gating_floor": 1.0})
     with pytest.raises(ValueError, match="unknown"):
         LibraryConfig.from_dict({"magic": 1.0})
+    # a cold review found these accepted ("no" acts as true) or refused without the field's name
+    for name in ("basis_normalized", "subtract_start", "conditioning_gain"):
+        with pytest.raises(ValueError, match=f"LibraryConfig.{name} must be true or false, got 'no'"):
+            LibraryConfig(**{name: "no"})
+    for bad in (float("nan"), float("inf"), "x", 4.5, True):
+        with pytest.raises(ValueError, match="LibraryConfig.n_samples must be an integer >= 4"):
+            LibraryConfig(n_samples=bad)
+    assert LibraryConfig(n_samples=50.0).n_samples == 50 and LibraryConfig(subtract_start=np.bool_(False)).subtract_start is False
     cfg = LibraryConfig(n_basis_human=12)
     assert LibraryConfig.from_dict(cfg.dict()) == cfg
 

@@ -209,8 +209,9 @@ def test_normalized_input_skips_the_configuration_workspace_in_every_query(taugh
 
 
 WORKSPACE_MESSAGE = ("recognize()/predict_robot() without a workspace on a library trained with one: the motion is "
-                     "taken in raw units and will likely be 'unknown'; pass workspace= (the subject's Workspace) "
-                     "or, for samples already in normalized units, normalized=True (warned once per library)")
+                     "taken in raw units and will likely be 'unknown'; give the subject's workspace (workspace= in "
+                     "Python, --workspace or a workspace.json / calibration.npz beside the files on the command "
+                     "line) or, for samples already in normalized units, normalized=True (warned once per library)")
 
 
 def _fresh(lib):
