@@ -1,12 +1,17 @@
 """``JointTrajectorySource``: desired joint state and acceleration for the controller.
 
-A conditioned trajectory becomes a smooth :class:`JointPlan` once. A new one while a
-plan runs (the conditioner re-conditioned on a longer prefix, or the gating switched
-skills) is blended into the running command from the current desired position and
-velocity (:func:`blend_plan`): position and velocity stay continuous, the offset fades
-out over ``BLEND_TIME`` with a quintic, joint positions stay inside the limits (minus a
-margin) and, if the blend would exceed a joint's velocity limit, the rest of the plan is
-slowed down until it does not. When the trajectory is withdrawn (the gating gave the
+A conditioned trajectory becomes a smooth :class:`JointPlan` once, starting at rest
+from the held pose no earlier than the moment the source sees it (:func:`build_plan`). A
+new one while a plan runs (the conditioner re-conditioned on a longer prefix, or the
+gating switched skills) is blended into the running command from the current desired
+position and velocity (:func:`blend_plan`): position and velocity stay continuous, the
+offset fades out over ``BLEND_TIME`` with a quintic. Every plan keeps joint positions
+inside the limits (minus a margin), is slowed down (time stretched) until no joint exceeds
+its velocity limit, and ends at the trajectory's last pose at rest: the conditioned mean
+moves at its first and last samples (at its end 0.06-0.19 rad/s on the salad), so its first
+and last ``TAIL`` are played speeding up from and slowing down to zero velocity and
+acceleration (:func:`trajectory_clock`) instead of starting and stopping within one knot
+interval (10-53 rad/s^2). When the trajectory is withdrawn (the gating gave the
 skill up) the robot decelerates to rest (:func:`stop_plan`) and holds.
 """
 from __future__ import annotations
@@ -34,6 +39,36 @@ BLEND_TIME = 0.5
 STOP_TIME = 0.5
 #: Distance kept from the joint limits (rad).
 LIMIT_MARGIN = 0.02
+#: A plan plays the first and the last stretch of its trajectory (the trajectory's clock, s;
+#: at most ``TAIL_FRACTION`` of the duration each) in twice the time, speeding up from rest
+#: and slowing down to rest (:func:`trajectory_clock`).
+TAIL = 0.25
+TAIL_FRACTION = 0.15
+
+
+def tail_of(duration: float) -> float:
+    """Seconds at each end of a trajectory of ``duration`` s that its plan plays at half speed on average."""
+    return min(TAIL, TAIL_FRACTION * float(duration))
+
+
+def trajectory_clock(r: np.ndarray, duration: float, tail: float) -> np.ndarray:
+    """The trajectory's own time for plan time ``r`` (both from its start; ``r`` in ``[0, duration + 2 tail]``).
+
+    The clock starts at rest, reaches full speed after ``2 tail`` of plan time (``tail`` of
+    its own), runs at full speed, and slows to a stop at ``duration``, reached at plan time
+    ``duration + 2 tail``: ``dtau/dr`` rises as ``3u^2 - 2u^3`` and falls as its mirror
+    image, so its speed and acceleration are continuous and zero at both ends. Whatever the
+    trajectory's first and last velocities (the conditioned mean still moves at its last
+    sample), the played motion starts and ends at rest with zero acceleration.
+    """
+    r = np.asarray(r, float)
+    if tail <= 0:
+        return np.clip(r, 0.0, duration)
+    u0 = np.clip(r / (2.0 * tail), 0.0, 1.0)
+    u1 = np.clip((r - duration) / (2.0 * tail), 0.0, 1.0)
+    start = 2.0 * tail * (u0 ** 3 - 0.5 * u0 ** 4)                    # 0 -> tail
+    end = duration - tail + 2.0 * tail * (u1 - u1 ** 3 + 0.5 * u1 ** 4)   # duration - tail -> duration
+    return np.where(r < 2.0 * tail, start, np.where(r < duration, r - tail, end))
 
 
 @dataclass(frozen=True, eq=False)
@@ -63,39 +98,67 @@ class JointPlan(Shared):
 
 
 def plan_knots(traj: ConditionedTrajectory, q_hold: np.ndarray, lower: np.ndarray, upper: np.ndarray, *,
-               blend_fraction: float = 0.2, margin: float = 0.02) -> tuple[np.ndarray, np.ndarray]:
+               blend_fraction: float = 0.2, margin: float = 0.02, start: float | None = None,
+               stretch: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """Knot times and positions for a conditioned trajectory, starting exactly at ``q_hold``.
 
-    The offset ``q_hold - mean[0]`` is faded out with a smoothstep over the
-    first ``blend_fraction`` of the motion, so the robot starts where it is
-    without a jump; positions are clipped to ``[lower + margin, upper - margin]``.
+    The offset ``q_hold - mean[0]`` is faded out with a smoothstep over the first
+    ``blend_fraction`` of the motion, so the robot starts where it is without a jump;
+    the first and last :func:`tail_of` the duration are played speeding up from and
+    slowing down to rest (:func:`trajectory_clock`); positions are clipped to
+    ``[lower + margin, upper - margin]``.
+    ``start`` (default ``traj.start_time``) is when the plan begins; ``stretch`` > 1 plays
+    the whole motion that many times slower.
 
     Returns
     -------
     times : array, shape (n,)
+        From ``start`` to ``start + stretch (duration + 2 tail)``.
     q : array, shape (n, D)
     """
     mean = np.asarray(traj.mean, float)
     n = mean.shape[0]
     duration = max(float(traj.duration), MIN_DURATION)
-    s = np.linspace(0.0, 1.0, n)
-    z = np.clip(s / blend_fraction, 0.0, 1.0) if blend_fraction > 0 else np.ones(n)
+    tail = tail_of(duration)
+    r_own = duration * np.linspace(0.0, 1.0, n) + tail                  # the mean's samples at full speed
+    r = np.concatenate([np.linspace(0.0, 2.0 * tail, 21),               # dense where it speeds up ...
+                        r_own[(r_own > 2.0 * tail) & (r_own < duration)],
+                        np.linspace(duration, duration + 2.0 * tail, 21)])   # ... and slows down
+    s = trajectory_clock(r, duration, tail) / duration
+    q_mean = np.stack([np.interp(s, np.linspace(0.0, 1.0, n), mean[:, j]) for j in range(mean.shape[1])], axis=1)
+    z = np.clip(s / blend_fraction, 0.0, 1.0) if blend_fraction > 0 else np.ones_like(s)
     fade = 1.0 - (3 * z ** 2 - 2 * z ** 3)  # 1 at the start, 0 after the blend
-    q = mean + np.outer(fade, np.asarray(q_hold, float) - mean[0])
+    q = q_mean + np.outer(fade, np.asarray(q_hold, float) - mean[0])
     q = np.clip(q, np.asarray(lower) + margin, np.asarray(upper) - margin)
-    return traj.start_time + duration * s, q
+    t0 = traj.start_time if start is None else float(start)
+    return t0 + stretch * r, q
 
 
-def build_plan(traj: ConditionedTrajectory, q_hold: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> JointPlan:
+def build_plan(traj: ConditionedTrajectory, q_hold: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+               vmax: np.ndarray | None = None, *, start: float | None = None) -> JointPlan:
     """Shape-preserving cubic through :func:`plan_knots` with zero end velocities.
 
-    Shape preservation keeps the curve between neighbouring knots, so it
-    stays inside the clipped joint limits.
+    Shape preservation keeps the curve between neighbouring knots, so it stays inside the
+    clipped joint limits. If ``vmax`` (rad/s per joint) is given and the plan is faster,
+    it is played slower (time stretched) until it is not: the first plan of a trial may
+    start far from the trajectory's first pose (on a real robot, where the last trial's
+    handover left it). ``start``: when the plan begins (default ``traj.start_time``; the
+    source passes the moment it sees the trajectory, never earlier, so the robot starts
+    at rest from where it holds).
     """
-    times, q = plan_knots(traj, q_hold, lower, upper)
-    pp = PiecewisePolynomial.CubicShapePreserving(times, q.T, zero_end_point_derivatives=True)
-    qd = pp.derivative(1)
-    return JointPlan(traj, pp, qd, qd.derivative(1))
+    stretch = 1.0
+    for _ in range(12):
+        times, q = plan_knots(traj, q_hold, lower, upper, start=start, stretch=stretch)
+        pp = PiecewisePolynomial.CubicShapePreserving(times, q.T, zero_end_point_derivatives=True)
+        qd = pp.derivative(1)
+        plan = JointPlan(traj, pp, qd, qd.derivative(1))
+        if vmax is None:
+            return plan
+        ratio = peak_speed_ratio(plan, vmax)
+        if ratio <= 1.0:
+            return plan
+        stretch *= 1.05 * ratio
+    return plan
 
 
 def _quintic_fade(sigma: np.ndarray) -> np.ndarray:
@@ -130,7 +193,8 @@ def blend_plan(traj: ConditionedTrajectory, now: float, q0: np.ndarray, v0: np.n
     """The rest of ``traj`` from ``now`` on, joined to the running command ``(q0, v0)`` without a jump.
 
     ``q(t) = p(t) + f(s) (q0 - p(now)) + b(s) (v0 - p'(now))`` with ``p`` the
-    trajectory's mean played from its ``start_time``, ``s = (t - now) / blend_time``,
+    trajectory's mean played from its ``start_time`` on :func:`trajectory_clock` (speeding up
+    from rest, slowing down to rest at its end), ``s = (t - now) / blend_time``,
     ``f`` a quintic fade and ``b`` a velocity bump, so ``q(now) = q0`` and
     ``qd(now) = v0``; then a cubic with continuous second derivatives through knots
     of that curve (start velocity ``v0``, end velocity 0), positions clipped to the
@@ -150,19 +214,23 @@ def blend_plan(traj: ConditionedTrajectory, now: float, q0: np.ndarray, v0: np.n
     mean = np.asarray(traj.mean, float)
     n = mean.shape[0]
     duration = max(float(traj.duration), MIN_DURATION)
+    tail = tail_of(duration)
     t_traj = traj.start_time + duration * np.linspace(0.0, 1.0, n)
-    end = max(t_traj[-1], now + blend_time)
+
+    def played(t):  # the mean on its own clock, its last `tail` slowing down to rest
+        tau = traj.start_time + trajectory_clock(np.asarray(t, float) - traj.start_time, duration, tail)
+        return np.stack([np.interp(tau, t_traj, mean[:, j]) for j in range(mean.shape[1])], axis=-1)
+
+    end = max(t_traj[-1] + 2.0 * tail, now + blend_time)
     stretch = 1.0
     for _ in range(12):
         span = (end - now) * stretch
-        times = now + span * np.linspace(0.0, 1.0, max(n, 20))
+        times = now + span * np.linspace(0.0, 1.0, max(n, 20) + 20)
         # the trajectory's own clock, slowed by `stretch` after now
-        tau = now + (times - now) / stretch
-        p = np.stack([np.interp(tau, t_traj, mean[:, j]) for j in range(mean.shape[1])], axis=1)
+        p = played(now + (times - now) / stretch)
         dt = 1e-3
-        p_now = np.array([np.interp(now, t_traj, mean[:, j]) for j in range(mean.shape[1])])
-        p_dot = (np.array([np.interp(now + dt, t_traj, mean[:, j]) for j in range(mean.shape[1])]) - p_now) / dt
-        p_dot /= stretch
+        p_now = played(now)
+        p_dot = (played(now + dt) - p_now) / dt / stretch
         T_b = blend_time * stretch
         sig = (times - now) / T_b
         q = p + np.outer(_quintic_fade(sig), q0 - p_now) + np.outer(_velocity_bump(sig, T_b), v0 - p_dot)
@@ -233,7 +301,7 @@ class JointTrajectorySource(LeafSystem):
     q_default : array, shape (D,)
         Pose held before any measurement was latched.
     velocity_limits : array, shape (D,), optional
-        Joint speed limits (rad/s) a blend is slowed down to respect.
+        Joint speed limits (rad/s) every plan is slowed down to respect.
     """
 
     def __init__(self, lower, upper, q_default, velocity_limits=None):
@@ -284,8 +352,8 @@ class JointTrajectorySource(LeafSystem):
             raise ValueError(f"robot_trajectory must be a ConditionedTrajectory, got {type(traj).__name__}")
         if plan is not None and plan.source is not None and plan.source.key == traj.key:
             return
-        if plan is None:
-            new = build_plan(traj, q_hold, self._lower, self._upper)
+        if plan is None:  # from rest where it holds, never from a start already past (no jump)
+            new = build_plan(traj, q_hold, self._lower, self._upper, self._vmax, start=max(traj.start_time, now))
         else:
             q0, v0, _ = desired_at(plan, q_hold, now)
             new = blend_plan(traj, now, q0, v0, self._lower, self._upper, self._vmax)

@@ -5,7 +5,8 @@ from pydrake.systems.framework import DiagramBuilder
 from drake_skills.systems.conditioner import ConditionedTrajectory, InteractionProMPConditioner
 from drake_skills.systems.gating import SkillGating
 from drake_skills.systems.normalizer import WorkspaceNormalizer
-from drake_skills.systems.trajectory_source import JointTrajectorySource, build_plan, desired_at, plan_knots
+from drake_skills.systems.trajectory_source import (JointTrajectorySource, build_plan, desired_at, plan_knots,
+                                                     tail_of, trajectory_clock)
 from drake_skills.systems.wrist_source import HumanWristSource, WristTrial
 
 from synthetic import WORKSPACE
@@ -26,7 +27,8 @@ def test_plan_starts_at_the_held_pose_and_ends_at_the_mean():
     times, q = plan_knots(traj, HOME, LOWER, UPPER)
     np.testing.assert_allclose(q[0], HOME)
     np.testing.assert_allclose(q[-1], traj.mean[-1])
-    assert times[0] == 1.0 and times[-1] == 3.0
+    # 2 s of trajectory, its first and last 0.25 s played at half speed on average
+    assert times[0] == 1.0 and times[-1] == 3.0 + 2 * tail_of(2.0) == 3.5
     plan = build_plan(traj, HOME, LOWER, UPPER)
     q0, v0, _ = desired_at(plan, HOME, 1.0)
     np.testing.assert_allclose(q0, HOME, atol=1e-12)
@@ -70,7 +72,7 @@ def test_holds_the_measured_pose_until_a_trajectory_arrives():
     assert plan is not None and plan.start_time == 1.0
     np.testing.assert_allclose(source.GetOutputPort("desired_state").Eval(context)[:7], plan.q.value(2.0)[:, 0])
     simulator.AdvanceTo(4.0)
-    np.testing.assert_allclose(source.GetOutputPort("desired_state").Eval(context)[:7], plan.q.value(3.0)[:, 0])
+    np.testing.assert_allclose(source.GetOutputPort("desired_state").Eval(context)[:7], plan.q.value(3.5)[:, 0])
     np.testing.assert_allclose(source.GetOutputPort("desired_state").Eval(context)[:7][0], 0.55)  # knots shifted
 
 
@@ -170,3 +172,75 @@ def test_a_withdrawn_trajectory_stops_the_robot_smoothly_and_holds():
     assert source.plan(ctx).source is None
     ctx.SetTime(1.8 + STOP_TIME + 0.1)
     np.testing.assert_allclose(source.GetOutputPort("desired_state").Eval(ctx)[7:], 0.0, atol=1e-9)
+
+
+def _moving_traj(start_time=1.0, speed=0.2):
+    """A conditioned mean that still moves at its first and last samples (as real ones do: 0.06-0.19 rad/s)."""
+    s = np.linspace(0, 1, 50)[:, None]
+    mean = HOME + 2.0 * speed * s * np.array([1.0, -0.5, 0.8, 0.3, -1.0, 0.6, 0.4])
+    return ConditionedTrajectory(3, mean, np.zeros_like(mean), 2.0, start_time)
+
+
+def _accel(plan, t):
+    return np.abs(desired_at(plan, HOME, t)[2]).max()
+
+
+def test_the_clock_starts_and_ends_at_rest_and_covers_the_trajectory():
+    D, T = 2.0, tail_of(2.0)
+    r = np.linspace(0.0, D + 2 * T, 20001)
+    tau = trajectory_clock(r, D, T)
+    rate = np.gradient(tau, r)
+    assert tau[0] == 0.0 and abs(tau[-1] - D) < 1e-12 and (np.diff(tau) >= 0).all()
+    assert rate[0] < 1e-6 and rate[-1] < 1e-6 and abs(rate.max() - 1.0) < 1e-9
+    assert np.abs(np.diff(rate)).max() < 1e-3   # no step in the clock's speed (its acceleration is bounded)
+
+
+def test_a_plan_of_a_moving_mean_starts_and_ends_at_rest_without_an_acceleration_spike():
+    # a cold review found every plan stopping within one knot interval: 10-53 rad/s^2 in its last 50 ms
+    from drake_skills.systems.trajectory_source import blend_plan
+
+    traj = _moving_traj()
+    first = build_plan(traj, traj.mean[0], LOWER, UPPER)
+    q0, v0, _ = desired_at(first, HOME, 1.5)
+    for plan in (first, blend_plan(traj, 1.5, q0, v0, LOWER, UPPER)):
+        end = plan.end_time
+        np.testing.assert_allclose(desired_at(plan, HOME, end)[0], traj.mean[-1], atol=1e-9)  # the handover pose
+        np.testing.assert_allclose(desired_at(plan, HOME, end - 1e-6)[1], 0.0, atol=1e-4)
+        # 0.4 rad/s over the trajectory: slowing to rest in 0.5 s takes ~1.2 rad/s^2, not 0.2 / 0.04 s
+        assert max(_accel(plan, t) for t in np.linspace(end - 0.05, end - 1e-6, 50)) < 0.5
+        assert max(_accel(plan, t) for t in np.linspace(plan.start_time, end, 400)) < 2.5
+    assert max(_accel(first, t) for t in np.linspace(1.0, 1.05, 50)) < 0.5   # and it starts gently
+
+
+def test_the_first_plan_starts_when_the_source_sees_it_from_rest_without_a_jump():
+    # the conditioner stamps its start at its own update; the source sees it up to 1/64 s later
+    source = JointTrajectorySource(LOWER, UPPER, HOME)
+    ctx = source.CreateDefaultContext()
+    source.GetInputPort("measured_state").FixValue(ctx, np.concatenate([HOME, np.zeros(7)]))
+    source.GetInputPort("robot_trajectory").FixValue(ctx, _moving_traj(start_time=1.0))
+    scratch = ctx.Clone()
+    ctx.SetTime(1.0 + 1.0 / 64.0)
+    source.CalcForcedUnrestrictedUpdate(ctx, scratch.get_mutable_state())
+    ctx.SetAbstractState(0, scratch.get_abstract_state(0).get_value())
+    plan = source.plan(ctx)
+    assert plan.start_time == 1.0 + 1.0 / 64.0
+    q, v, _ = desired_at(plan, HOME, plan.start_time)
+    np.testing.assert_allclose(q, HOME, atol=1e-12)
+    np.testing.assert_allclose(v, 0.0, atol=1e-12)
+    q1, _, _ = desired_at(plan, HOME, plan.start_time + 1e-3)
+    assert np.abs(q1 - HOME).max() < 1e-5   # 1 ms later: no jump (it was 2.7 mrad in 0.5 ms)
+
+
+def test_the_first_plan_respects_the_velocity_limits_from_a_far_pose():
+    # on a real robot a trial starts where the last one left it; the first plan was not speed checked
+    from drake_skills.systems.trajectory_source import peak_speed_ratio
+
+    slow = np.full(7, 0.5)
+    far = HOME + np.array([1.2, -1.0, 1.2, -0.5, 1.2, -1.0, 1.2]) * 0.8
+    unlimited = build_plan(_traj(1.0), far, LOWER, UPPER)
+    assert peak_speed_ratio(unlimited, slow) > 1.5
+    plan = build_plan(_traj(1.0), far, LOWER, UPPER, slow)
+    assert peak_speed_ratio(plan, slow) <= 1.0 + 1e-6
+    assert plan.end_time > unlimited.end_time   # slowed down, same path
+    np.testing.assert_allclose(desired_at(plan, HOME, plan.end_time)[0], _traj(1.0).mean[-1], atol=1e-9)
+    np.testing.assert_allclose(desired_at(plan, HOME, plan.start_time)[0], far, atol=1e-9)
