@@ -19,6 +19,7 @@ from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Optional, Union
 
+import numpy as np
 import yaml
 from pydrake.common.yaml import yaml_load, yaml_load_typed
 
@@ -44,6 +45,15 @@ class ControllerConfig:
     # derivative gain (1/s)
     kd: float = 20.0
 
+    def __post_init__(self):
+        # a negative gain pushes the arm away from its command (a cold review ran kp = -100 to the end)
+        for name in ("kp", "kd"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"ControllerConfig.{name} must be positive and finite, got {v!r}")
+        if not (np.isfinite(self.ki) and self.ki >= 0):
+            raise ValueError(f"ControllerConfig.ki must be >= 0 and finite, got {self.ki!r}")
+
 
 @dataclass
 class MeshcatConfig:
@@ -59,6 +69,16 @@ class MeshcatConfig:
     camera_position: list[float] = field(default_factory=lambda: [-1.45, -1.05, 1.55])
     # point the camera looks at, metres (world): above the table, between the person and the robot
     camera_target: list[float] = field(default_factory=lambda: [-0.2, 0.15, 0.9])
+
+    def __post_init__(self):
+        for name in ("publish_period", "frames_per_second", "wrist_radius"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"MeshcatConfig.{name} must be positive and finite, got {v!r}")
+        for name in ("camera_position", "camera_target"):
+            v = np.asarray(getattr(self, name), float)
+            if v.shape != (3,) or not np.isfinite(v).all():
+                raise ValueError(f"MeshcatConfig.{name} must be three finite numbers (metres), got {getattr(self, name)!r}")
 
 
 @dataclass
@@ -112,9 +132,10 @@ class SimConfig:
                 raise ValueError(f"SimConfig.{name} must be a {kind.__name__}, "
                                  f"got {type(getattr(self, name)).__name__}")
         for name in ("time_step", "settle_time", "log_period"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"SimConfig.{name} must be positive, got {getattr(self, name)!r}")
-        if self.unknown_hold_time < 0:
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"SimConfig.{name} must be positive and finite, got {v!r}")
+        if not (np.isfinite(self.unknown_hold_time) and self.unknown_hold_time >= 0):
             raise ValueError(f"SimConfig.unknown_hold_time must be >= 0, got {self.unknown_hold_time!r}")
         if isinstance(self.subject, bool) or int(self.subject) != self.subject or self.subject < 1:
             raise ValueError(f"SimConfig.subject is a 1-based index, got {self.subject!r}")

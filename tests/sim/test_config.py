@@ -52,6 +52,13 @@ def test_a_file_of_library_fields_alone_is_the_library_config(tmp_path):
     ("- 1\n- 2\n", "not a mapping"),
     ("library:\n  workspace: {lower: [], upper: []}\n", "too short"),
     ("subject_model: stylish\n", "subject_model must be one of"),
+    # a cold review ran these to a crash inside Drake or to the end with nonsense figures
+    ("controller:\n  kp: -100.0\n", "ControllerConfig.kp must be positive"),
+    ("controller:\n  ki: .nan\n", "ControllerConfig.ki must be >= 0"),
+    ("time_step: .inf\n", "SimConfig.time_step must be positive and finite"),
+    ("log_period: .inf\n", "SimConfig.log_period must be positive and finite"),
+    ("meshcat:\n  publish_period: -1.0\n", "MeshcatConfig.publish_period must be positive"),
+    ("meshcat:\n  camera_target: [0.0, 1.0]\n", "MeshcatConfig.camera_target must be three finite numbers"),
     # not YAML at all: a clean error, not the parser's traceback (found by a cold review)
     (": : bad yaml [\n", "is not valid YAML: .*line 1"),
     ("ridge: 0.1\n\tn_samples: 5\n", "is not valid YAML: .*'\\\\t'"),
