@@ -17,8 +17,10 @@ def register(sub) -> None:
                     "five tasks in random order against an initially EMPTY skill library: the controller "
                     "recognizes the skill from the person's wrist and the simulated IIWA7 executes the "
                     "conditioned response, or it answers 'unknown', holds still, and the trial's "
-                    "demonstration is folded into the library. Writes OUT/summary.json, OUT/library.npz and "
-                    "OUT/demo.html (a self-contained meshcat recording of the whole run).")
+                    "demonstration is folded into the library. Writes OUT/summary.json, OUT/library.npz, "
+                    "OUT/trials/trial_NN.png (per trial: component probabilities and estimated phase against "
+                    "time, commit and final answer marked) and OUT/demo.html (a self-contained meshcat "
+                    "recording of the whole run).")
     p.add_argument("--trials", type=int, default=None,
                    help="number of trials (default: the config's, 20; 8 with --quick)")
     p.add_argument("--subject", type=int, default=None,
@@ -170,5 +172,5 @@ def run(args: argparse.Namespace) -> int:
     legend = legend_html([_result(r) for r in summary.results])
     page = page.replace("</body>", legend + "</body>", 1) if "</body>" in page else page + legend
     html.write_text(page)
-    print(f"wrote {args.out / 'summary.json'}, {args.out / 'library.npz'}, {html}")
+    print(f"wrote {args.out / 'summary.json'}, {args.out / 'library.npz'}, {plots}/trial_*.png, {html}")
     return 0

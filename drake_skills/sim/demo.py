@@ -35,6 +35,15 @@ TRIAL_GRID = 1.0 / 64.0
 MOTION_DONE = 0.99
 
 
+def _final_time(decision) -> float:
+    """When the gating gave its final answer: its last re-decision (the whole-motion test), or the loss.
+
+    ``GatingDecision.time`` is when the current component was set, i.e. the commit for a skill
+    committed while the person moved (a cold review found it reported as the final decision).
+    """
+    return float(decision.time if decision.status == "lost" else decision.last_check)
+
+
 @dataclass(frozen=True)
 class TrialOutcome:
     """What the closed loop did in one trial (:meth:`CollaborationSim.run_trial`)."""
@@ -317,7 +326,7 @@ class CollaborationSim:
         executed = decision.final and decision.component is not None and traj is not None
         outcome = TrialOutcome(component=decision.component if executed else None,
                                status=decision.status if decision.final else "unknown",
-                               decision_time=float(decision.time) - t0 if decision.final else float("nan"),
+                               decision_time=_final_time(decision) - t0 if decision.final else float("nan"),
                                start_time=t0, end_time=t, executed=executed,
                                plan_start=float(decision.commit_time), commits=tuple(decision.commits),
                                revisions=int(decision.revisions), beliefs=tuple(decision.beliefs))

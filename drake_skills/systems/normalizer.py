@@ -161,11 +161,6 @@ class WorkspaceNormalizer(LeafSystem):
     def workspace(self) -> Workspace:
         return self._workspace
 
-    def start(self, context: Context) -> np.ndarray | None:
-        """The latched normalized start position, or None before the first sample."""
-        x = context.get_discrete_state(self._state).get_value()
-        return None if x[-1] < 0.5 else np.array(x[:-1])
-
     @property
     def rule(self) -> SampleRule | None:
         return self._rule

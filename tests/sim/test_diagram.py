@@ -93,6 +93,9 @@ def test_taught_library_answers_unknown_for_an_untaught_task_and_the_trial_ends_
     assert outcome.end_time == pytest.approx(outcome.start_time + outcome.decision_time + 0.75)
     known, _ = sim.run_trial(subject.by_task("bowl")[4])  # a taught task is still recognized
     assert known.component is not None and sim.label_of(known.component) == "bowl"
+    # decision_time is the final (whole-motion) answer, after the commit made while the person moved
+    assert known.decision_time == pytest.approx(known.beliefs[-1].time - known.start_time)
+    assert known.decision_time > known.plan_start - known.start_time + 0.1
 
 
 def test_demo_command_writes_a_recording_that_shows_the_robot_and_the_decision_colour(tmp_path):
