@@ -24,6 +24,7 @@ from pydrake.common.value import AbstractValue
 from drake_skills.systems.shared import Shared
 from pydrake.systems.framework import BasicVector, Context, LeafSystem, State
 from pydrake.trajectories import PiecewisePolynomial
+from scipy.interpolate import CubicSpline
 
 from drake_skills.systems.conditioner import ConditionedTrajectory
 
@@ -187,19 +188,28 @@ def peak_speed_ratio(plan: JointPlan, vmax: np.ndarray, n: int = 200) -> float:
     return float(np.max(np.abs(qd) / np.asarray(vmax, float)))
 
 
+def _acceleration_bump(sigma: np.ndarray, T: float) -> np.ndarray:
+    """``T^2 sigma^2 (1 - sigma)^3 / 2``: 0 with zero slope at 0, second derivative 1 per s^2 there, flat at 1."""
+    x = np.clip(sigma, 0.0, 1.0)
+    return 0.5 * T * T * x * x * (1.0 - x) ** 3
+
+
 def blend_plan(traj: ConditionedTrajectory, now: float, q0: np.ndarray, v0: np.ndarray, lower: np.ndarray,
                upper: np.ndarray, vmax: np.ndarray | None = None, *, blend_time: float = BLEND_TIME,
-               margin: float = LIMIT_MARGIN) -> JointPlan:
+               margin: float = LIMIT_MARGIN, a0: np.ndarray | None = None) -> JointPlan:
     """The rest of ``traj`` from ``now`` on, joined to the running command ``(q0, v0)`` without a jump.
 
-    ``q(t) = p(t) + f(s) (q0 - p(now)) + b(s) (v0 - p'(now))`` with ``p`` the
+    ``q(t) = p(t) + f(s) (q0 - p(now)) + b(s) (v0 - p'(now)) [+ c(s) (...)]`` with ``p`` the
     trajectory's mean played from its ``start_time`` on :func:`trajectory_clock` (speeding up
     from rest, slowing down to rest at its end), ``s = (t - now) / blend_time``,
     ``f`` a quintic fade and ``b`` a velocity bump, so ``q(now) = q0`` and
     ``qd(now) = v0``; then a cubic with continuous second derivatives through knots
     of that curve (start velocity ``v0``, end velocity 0), positions clipped to the
     limits minus ``margin``. If ``vmax`` is given and the plan is faster, the part
-    after ``now`` and the blend are slowed down (time stretched) until it is not.
+    after ``now`` and the blend are slowed down (time stretched) until it is not. Given the
+    running command's acceleration ``a0``, an acceleration bump ``c`` makes the curve start
+    with it too (``p`` is then a C2 spline of the mean), so a re-plan is no torque step
+    either (8-10 rad/s^2 in the closed loop without it; the source passes it).
 
     Parameters
     ----------
@@ -210,6 +220,8 @@ def blend_plan(traj: ConditionedTrajectory, now: float, q0: np.ndarray, v0: np.n
     lower, upper : arrays, shape (D,)
     vmax : array, shape (D,), optional
         Joint velocity limits (rad/s).
+    a0 : array, shape (D,), optional
+        The running command's acceleration at ``now`` (continued if given).
     """
     mean = np.asarray(traj.mean, float)
     n = mean.shape[0]
@@ -217,9 +229,11 @@ def blend_plan(traj: ConditionedTrajectory, now: float, q0: np.ndarray, v0: np.n
     tail = tail_of(duration)
     t_traj = traj.start_time + duration * np.linspace(0.0, 1.0, n)
 
-    def played(t):  # the mean on its own clock, its last `tail` slowing down to rest
+    smooth = CubicSpline(t_traj, mean, axis=0, bc_type="natural")   # C2: its acceleration is defined
+
+    def played(t):  # the mean on its own clock, speeding up from and slowing down to rest
         tau = traj.start_time + trajectory_clock(np.asarray(t, float) - traj.start_time, duration, tail)
-        return np.stack([np.interp(tau, t_traj, mean[:, j]) for j in range(mean.shape[1])], axis=-1)
+        return smooth(np.clip(tau, t_traj[0], t_traj[-1]))
 
     end = max(t_traj[-1] + 2.0 * tail, now + blend_time)
     stretch = 1.0
@@ -234,6 +248,9 @@ def blend_plan(traj: ConditionedTrajectory, now: float, q0: np.ndarray, v0: np.n
         T_b = blend_time * stretch
         sig = (times - now) / T_b
         q = p + np.outer(_quintic_fade(sig), q0 - p_now) + np.outer(_velocity_bump(sig, T_b), v0 - p_dot)
+        if a0 is not None:  # and the running command's acceleration (the velocity bump adds -6/T (v0 - p'))
+            p_ddot = (played(now + 2 * dt) - 2 * played(now + dt) + p_now) / (dt * dt) / (stretch * stretch)
+            q += np.outer(_acceleration_bump(sig, T_b), np.asarray(a0, float) - p_ddot + 6.0 / T_b * (v0 - p_dot))
         q = np.clip(q, np.asarray(lower) + margin, np.asarray(upper) - margin)
         q[0] = q0
         plan = _fit(times, q, v0, traj)
@@ -355,8 +372,8 @@ class JointTrajectorySource(LeafSystem):
         if plan is None:  # from rest where it holds, never from a start already past (no jump)
             new = build_plan(traj, q_hold, self._lower, self._upper, self._vmax, start=max(traj.start_time, now))
         else:
-            q0, v0, _ = desired_at(plan, q_hold, now)
-            new = blend_plan(traj, now, q0, v0, self._lower, self._upper, self._vmax)
+            q0, v0, a0 = desired_at(plan, q_hold, now)
+            new = blend_plan(traj, now, q0, v0, self._lower, self._upper, self._vmax, a0=a0)
         state.get_mutable_abstract_state(self._state).set_value((q_hold, new))
 
     def _desired(self, context: Context):
