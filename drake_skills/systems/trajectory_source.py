@@ -379,10 +379,13 @@ class JointTrajectorySource(LeafSystem):
     def _desired(self, context: Context):
         """(q, v, a) at the context's time; the two outputs ask at every plant step, so the last answer is kept."""
         q_hold, plan = context.get_abstract_state(self._state).get_value()
-        key = (id(plan), id(q_hold), context.get_time())
-        if self._memo[0] != key:
-            self._memo = (key, desired_at(plan, q_hold, key[2]))
-        return self._memo[1]
+        t = context.get_time()
+        # the memo holds the objects themselves, not their ids: a freed plan's id can be reused by the next
+        key, hit = self._memo
+        if key is None or key[0] is not plan or key[1] is not q_hold or key[2] != t:
+            hit = desired_at(plan, q_hold, t)
+            self._memo = ((plan, q_hold, t), hit)
+        return hit
 
     def _calc_state(self, context: Context, output: BasicVector) -> None:
         q, v, _ = self._desired(context)
