@@ -5,13 +5,24 @@ that goes to the robot, watching the robot's status (as decoded by pydrake's
 ``IiwaStatusReceiver``), and it is the one place that decides what is safe to send:
 
 * no command before a status message has been seen (initializing without one is an error);
+  the first command is the measured position itself (inside the hard limits);
 * the command moves at most ``v_max * period`` per period (joint speed limits) and stays
-  ``margin`` inside the joint position limits;
+  ``margin`` inside the joint position limits (a robot parked inside the margin is moved
+  out of it at the speed limit);
 * a stale status (no new message for ``stale_timeout``) freezes the command where it is;
   it follows the desired state again only when the status is fresh and the desired
   position has come back within ``resume_tolerance`` of the frozen command (in practice:
   at the next trial, whose hold pose is latched from the measured position), so the robot
-  never jumps to catch up.
+  never jumps to catch up;
+* a new status whose position is more than ``max_lag`` from the command while it follows
+  (the robot stopped on its own, e.g. a protective stop, while the command ran on), or more
+  than ``hold_lag`` while it holds (the robot was moved or restarted during a status gap),
+  re-latches the command to the measured position and holds it, as after a stale status: the
+  command never leads the robot by more than ``max_lag``, and never jumps back to where a
+  moved robot was;
+* a desired position that is not finite holds the command;
+* a status whose positions are not finite counts as not received, and the controller's
+  measured state is the last good status (a trial starting on a bad message latches it).
 
 Freshness is judged by the controller's own clock: a message is new when its timestamp
 differs from the last one seen, and its arrival is the time of the update that saw it.
@@ -46,6 +57,12 @@ class GuardLimits:
         Commands stay this far inside the position limits (rad).
     resume_tolerance : float
         After a freeze, follow the desired position again once it is this close (rad, max norm).
+    max_lag : float
+        Largest distance (rad, max norm) between the command and a new measured position while
+        following; beyond it the command is re-latched to the measured position and held. The
+        simulated station lags up to 0.07 rad (0.15 with 20 ms of bus latency).
+    hold_lag : float
+        The same while holding, when the robot should be at the command.
     """
 
     lower: np.ndarray
@@ -55,6 +72,8 @@ class GuardLimits:
     stale_timeout: float = 0.1
     margin: float = math.radians(1.0)
     resume_tolerance: float = 0.01
+    max_lag: float = 0.3
+    hold_lag: float = 0.05
 
     def __post_init__(self):
         lower, upper, v_max = (np.asarray(a, float).copy() for a in (self.lower, self.upper, self.v_max))
@@ -63,7 +82,7 @@ class GuardLimits:
             raise ValueError(f"GuardLimits: lower, upper and v_max must have shape ({n},)")
         if (upper - lower <= 2 * self.margin).any() or (v_max <= 0).any():
             raise ValueError("GuardLimits: need upper - lower > 2 margin and v_max > 0")
-        for name in ("period", "stale_timeout", "resume_tolerance"):
+        for name in ("period", "stale_timeout", "resume_tolerance", "max_lag", "hold_lag"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"GuardLimits.{name} must be positive, got {v!r}")
@@ -98,11 +117,15 @@ class GuardState:
     arrival_time : float
         Controller time at which that status was first seen (s; NaN: none).
     holding : bool
-        The command is frozen (the status went stale).
+        The command is frozen (the status went stale, or the robot was not where commanded).
     limited : int
         Updates in which a speed or position limit changed the command (a diagnostic).
     stale_events : int
         Times the status went stale.
+    measured, velocity : array, shape (n,), or None
+        The newest good (finite) status's joint positions and velocities (None: none yet).
+    lag_events : int
+        Times a fresh status was more than ``max_lag`` from the command (re-latched).
     """
 
     command: np.ndarray | None = None
@@ -111,22 +134,32 @@ class GuardState:
     holding: bool = False
     limited: int = 0
     stale_events: int = 0
+    measured: np.ndarray | None = None
+    velocity: np.ndarray | None = None
+    lag_events: int = 0
 
     def status_age(self, time: float) -> float:
         """Seconds since the newest status arrived (inf: none yet)."""
         return math.inf if math.isnan(self.arrival_time) else time - self.arrival_time
 
     def to_vector(self, n: int) -> np.ndarray:
-        """The state as the guard's discrete state vector (n + 6,)."""
-        command = self.command if self.command is not None else np.full(n, np.nan)
+        """The state as the guard's discrete state vector (3 n + 8,)."""
+        nan = np.full(n, np.nan)
+        command = self.command if self.command is not None else nan
+        measured = self.measured if self.measured is not None else nan
+        velocity = self.velocity if self.velocity is not None else nan
         return np.concatenate([command, [self.status_time, self.arrival_time, float(self.holding), self.limited,
-                                         self.stale_events, float(self.command is not None)]])
+                                         self.stale_events, float(self.command is not None)],
+                               measured, velocity, [float(self.measured is not None), self.lag_events]])
 
     @classmethod
     def from_vector(cls, x: np.ndarray, n: int) -> "GuardState":
         """Inverse of :meth:`to_vector`."""
+        m = n + 6
+        has = x[3 * n + 6] > 0.5
         return cls(np.array(x[:n]) if x[n + 5] > 0.5 else None, float(x[n]), float(x[n + 1]), bool(x[n + 2] > 0.5),
-                   int(x[n + 3]), int(x[n + 4]))
+                   int(x[n + 3]), int(x[n + 4]), np.array(x[m:m + n]) if has else None,
+                   np.array(x[m + n:m + 2 * n]) if has else None, int(x[3 * n + 7]))
 
 
 def status_received(q_measured: np.ndarray, status_time: float) -> bool:
@@ -143,7 +176,7 @@ def status_received(q_measured: np.ndarray, status_time: float) -> bool:
 
 
 def guard_step(state: GuardState, time: float, q_measured: np.ndarray, status_time: float, q_desired: np.ndarray,
-               limits: GuardLimits) -> GuardState:
+               limits: GuardLimits, q_velocity: np.ndarray | None = None) -> GuardState:
     """One command period: note a new status, freeze on a stale one, limit and advance the command.
 
     Parameters
@@ -156,8 +189,10 @@ def guard_step(state: GuardState, time: float, q_measured: np.ndarray, status_ti
     status_time : float
         Its timestamp (s, the robot's clock; only compared with the previous one).
     q_desired : array, shape (n,)
-        Joint positions the trajectory source asks for (rad).
+        Joint positions the trajectory source asks for (rad); not finite: hold.
     limits : GuardLimits
+    q_velocity : array, shape (n,), optional
+        Joint velocities of the newest status (kept with the last good position).
 
     Returns
     -------
@@ -165,26 +200,41 @@ def guard_step(state: GuardState, time: float, q_measured: np.ndarray, status_ti
     """
     status_t, arrival = state.status_time, state.arrival_time
     received = status_received(q_measured, status_time)
-    if received and status_time != status_t:
-        status_t, arrival = float(status_time), float(time)
+    measured, velocity = state.measured, state.velocity
+    new_status = received and status_time != status_t
+    if received:
+        measured = np.array(q_measured, float)
+        velocity = np.array(q_velocity, float) if q_velocity is not None else np.zeros_like(measured)
+        if new_status:
+            status_t, arrival = float(status_time), float(time)
+    keep = dict(measured=measured, velocity=velocity, lag_events=state.lag_events)
     q = state.command
     if q is None:
         if not received:
-            return GuardState(None, status_t, arrival, state.holding, state.limited, state.stale_events)
-        q = np.minimum(np.maximum(q_measured, limits.q_min), limits.q_max)
+            return GuardState(None, status_t, arrival, state.holding, state.limited, state.stale_events, **keep)
+        q = np.minimum(np.maximum(q_measured, limits.lower), limits.upper)   # where the robot is: no jump
     stale = not time - arrival <= limits.stale_timeout + 1e-9  # NaN arrival (none yet) is stale
     holding, stale_events = state.holding, state.stale_events
     if stale and not holding:
         holding, stale_events = True, stale_events + 1
-    elif holding and not stale and float(np.max(np.abs(q_desired - q))) <= limits.resume_tolerance:
+    fresh = received and not stale
+    # only a new status says where the robot is now (between statuses the last one ages)
+    if new_status and not stale and float(np.max(np.abs(q - q_measured))) > (limits.hold_lag if holding
+                                                                             else limits.max_lag):
+        # the robot is not where it is commanded: re-latch to it and hold (no jump to the old command)
+        q = np.minimum(np.maximum(q_measured, limits.lower), limits.upper)
+        keep["lag_events"] = state.lag_events + 1
+        return GuardState(q, status_t, arrival, True, state.limited, stale_events, **keep)
+    desired_ok = bool(np.isfinite(q_desired).all())
+    if holding and fresh and desired_ok and float(np.max(np.abs(q_desired - q))) <= limits.resume_tolerance:
         holding = False
-    if holding:
-        return GuardState(q, status_t, arrival, True, state.limited, stale_events)
+    if holding or not desired_ok:
+        return GuardState(q, status_t, arrival, holding, state.limited, stale_events, **keep)
     target = np.minimum(np.maximum(q_desired, limits.q_min), limits.q_max)
     delta = target - q
     step = np.minimum(np.maximum(delta, -limits.step_max), limits.step_max)
     changed = not (target == q_desired).all() or not (step == delta).all()
-    return GuardState(q + step, status_t, arrival, False, state.limited + changed, stale_events)
+    return GuardState(q + step, status_t, arrival, False, state.limited + changed, stale_events, **keep)
 
 
 class IiwaCommandGuard(LeafSystem):
@@ -260,13 +310,14 @@ class IiwaCommandGuard(LeafSystem):
         if not status_received(q, t):
             raise RuntimeError(f"IiwaCommandGuard: no lcmt_iiwa_status received on '{self._channel}'; the "
                                f"controller must not start before the robot reports")
-        new = replace(guard_step(old, context.get_time(), q, t, q, self._limits), limited=0)
+        new = replace(guard_step(old, context.get_time(), q, t, q, self._limits,
+                                 np.asarray(self._velocity.Eval(context))), limited=0)
         discrete_state.get_mutable_vector(self._state).SetFromVector(new.to_vector(self._n))
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         new = guard_step(self.guard_state(context), context.get_time(), np.asarray(self._measured.Eval(context)),
                          float(self._time.Eval(context)[0]), np.asarray(self._desired.Eval(context)[:self._n]),
-                         self._limits)
+                         self._limits, np.asarray(self._velocity.Eval(context)))
         discrete_state.get_mutable_vector(self._state).SetFromVector(new.to_vector(self._n))
 
     def _calc_position(self, context: Context, output: BasicVector) -> None:
@@ -277,10 +328,15 @@ class IiwaCommandGuard(LeafSystem):
 
     def _calc_measured_state(self, context: Context, output: BasicVector) -> None:
         q = np.asarray(self._measured.Eval(context))
-        if not status_received(q, float(self._time.Eval(context)[0])):
-            raise RuntimeError(f"IiwaCommandGuard: no lcmt_iiwa_status received on '{self._channel}' (the measured "
-                               f"state would be zeros); deliver a status before the controller initializes")
-        output.SetFromVector(np.concatenate([q, self._velocity.Eval(context)]))
+        if status_received(q, float(self._time.Eval(context)[0])):
+            output.SetFromVector(np.concatenate([q, self._velocity.Eval(context)]))
+            return
+        last = self.guard_state(context)   # the newest message is bad (NaN): the last good one
+        if last.measured is None:
+            raise RuntimeError(f"IiwaCommandGuard: no good lcmt_iiwa_status received on '{self._channel}' (none "
+                               f"yet, or only ones with non-finite positions); deliver a status before the "
+                               f"controller initializes")
+        output.SetFromVector(np.concatenate([last.measured, np.nan_to_num(last.velocity)]))
 
     def _calc_status(self, context: Context, output: AbstractValue) -> None:
         output.set_value(self.guard_state(context))
