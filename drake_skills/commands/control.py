@@ -114,6 +114,11 @@ def run(args: argparse.Namespace) -> int:
                       f"{'yes' if trial.held_for_stale_status else 'no'}", flush=True)
     except KeyboardInterrupt:
         stopped = "stopped by Ctrl-C"
+    except (RuntimeError, SystemExit) as exc:  # e.g. Drake's status receiver on a message of another robot
+        stopped = f"error: {' '.join(str(exc).split())}"
+        print(f"drake-skills control: error: the controller stopped (no more commands are sent): {exc}. A status "
+              f"on '{c.status_channel}' with num_joints other than 7 is what Drake's receiver refuses this way",
+              file=sys.stderr)
     records = [_jsonable(asdict(t)) for t in runner.trials[:args.trials]]
     if not stopped.endswith("done"):
         unfinished = runner.stop()
@@ -123,6 +128,8 @@ def run(args: argparse.Namespace) -> int:
         {"library": str(args.library), "workspace": who, "lcm": asdict(c), "stopped": stopped,
          "wall_seconds": round(time.perf_counter() - t_wall, 3), "trials": records}, indent=2))
     print(f"{stopped}: {sum(1 for r in records if not r.get('unfinished'))} trials; wrote {args.out / 'control.json'}")
+    if stopped.startswith("error:"):
+        return 1
     return 0
 
 

@@ -45,7 +45,7 @@ from drake_skills.library.incremental import SkillLibrary
 from drake_skills.sim.config import SimConfig
 from drake_skills.sim.controller import ControllerHandles, add_controller
 from drake_skills.sim.models import IIWA7_JOINT_LIMITS, IIWA7_VELOCITY_LIMITS, load_scene_config
-from drake_skills.systems.iiwa_guard import GuardLimits, IiwaCommandGuard
+from drake_skills.systems.iiwa_guard import GuardLimits, IiwaCommandGuard, status_received
 from drake_skills.systems.wrist_receiver import WristSignalReceiver
 
 log = logging.getLogger(__name__)
@@ -176,14 +176,28 @@ def receive_first_messages(handles: LcmControllerHandles, root_context: Context,
     waiting = list(zip(handles.subscribers, handles.subscribed))
     while True:
         waiting = [(s, c) for s, c in waiting if s.WaitForMessage(0, None, 1e-4) < 1]
-        if not waiting or time.monotonic() >= deadline:
+        if not waiting:
+            deliver_received(handles.subscribers, root_context)
+            if _status_is_good(handles, root_context):
+                return
+            # the newest status has non-finite positions: no hold pose to latch from it; wait for the next
+        if time.monotonic() >= deadline:
             break
         handles.lcm.HandleSubscriptions(20)
     if waiting:
         names = ", ".join(f"'{channel}' ({kind})" for _, (channel, kind) in waiting)
         raise TimeoutError(f"no message within {timeout:g} s on {names} of {handles.lcm.get_lcm_url()}: are the "
                            f"robot driver (or a simulated station) and the wrist tracker publishing there?")
-    deliver_received(handles.subscribers, root_context)
+    raise TimeoutError(f"no status with finite joint positions within {timeout:g} s on '{handles.subscribed[0][0]}' "
+                       f"of {handles.lcm.get_lcm_url()} (the ones received had NaN or inf positions)")
+
+
+def _status_is_good(handles: LcmControllerHandles, root_context: Context) -> bool:
+    """Does the newest status delivered to the guard have finite positions (:func:`status_received`)?"""
+    g = handles.guard
+    ctx = g.GetMyContextFromRoot(root_context)
+    q = np.asarray(g.GetInputPort("position_measured").Eval(ctx))
+    return status_received(q, float(g.GetInputPort("status_time").Eval(ctx)[0]))
 
 
 def start_trial(root_context: Context, handles: ControllerHandles) -> None:
