@@ -334,6 +334,8 @@ class InteractionProMP:
         human : array, shape (n, n_steps, D_h)
         robot : array, shape (n, n_steps, D_r) (empty last axis if dim_robot=0)
         """
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise ValueError(f"sample: n must be a positive integer, got {n!r}")
         h, Phi_h, Phi_r = self._split_traj(n_steps)
         rng = check_random_state(random_state)
         L = cholesky(self.cov_)

@@ -113,6 +113,9 @@ def test_sample_is_seeded_and_matches_moments():
     # standard error of a mean over 20000 samples: std/141; allow 5 standard errors
     tol = 5 * np.sqrt(np.einsum("tdd->td", cov_h)) / np.sqrt(20000)
     assert (np.abs(h.mean(axis=0) - mean_h) < tol).all()
+    for bad in (0, -1, 2.5, True):   # 0 was numpy's "cannot reshape array of size 0"
+        with pytest.raises(ValueError, match="n must be a positive integer"):
+            p.sample(bad)
 
 
 def test_interaction_rejects_bad_input():
