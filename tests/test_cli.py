@@ -503,6 +503,13 @@ def test_plot_demos_counts_each_demonstration_once(dataset, tmp_path, capsys):
     assert main(["plot-demos", str(dataset / "all"), "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert f"({4 * len(TASKS)} demonstrations of subject1)" in out and (tmp_path / "demos.png").is_file()
+    # files without a subject label: the error says so, not "subjects are []" (cold review)
+    plain = tmp_path / "plain"
+    plain.mkdir()
+    d = load_demo(dataset / "held" / "bowl_03.npz")
+    Demonstration(t=d.t, human=d.human, robot=d.robot, task="bowl").save(plain / "bowl.npz")
+    assert main(["plot-demos", str(plain), "--subject", "nobody", "--out", str(tmp_path / "p")]) == 1
+    assert "carry no 'subject' label; leave out --subject" in capsys.readouterr().err
 
 
 def test_recognize_a_fraction_observes_the_shortest_prefix_that_covers_it(dataset, learned, tmp_path):

@@ -143,7 +143,9 @@ def run(args: argparse.Namespace) -> int:
     subject = args.subject or (subjects[0] if subjects else None)
     if subject is not None:
         if subject not in subjects:
-            raise ValueError(f"subject {subject!r} not found; subjects are {subjects}")
+            raise ValueError(f"subject {subject!r} not found; subjects are {subjects}" if subjects else
+                             f"subject {subject!r} not found: the demonstrations under '{args.demos_dir}' carry no "
+                             f"'subject' label; leave out --subject")
         demos = [d for d in demos if d.subject == subject]
     fig = plot_demos(demos, title=f"{subject or args.demos_dir}: {len(demos)} demonstrations")
     args.out.mkdir(parents=True, exist_ok=True)
