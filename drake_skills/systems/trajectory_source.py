@@ -268,7 +268,9 @@ def stop_plan(now: float, q0: np.ndarray, v0: np.ndarray, lower: np.ndarray, upp
     """Decelerate from ``(q0, v0)`` to rest in ``stop_time`` and hold: ``q = q0 + v0 T (s - s^3 + s^4 / 2)``.
 
     Velocity falls from ``v0`` to 0 with zero acceleration at the end; the robot
-    stops ``v0 T / 2`` further on (clipped to the limits).
+    stops ``v0 T / 2`` further on (clipped to the limits). Unlike a re-plan, the stop does
+    not continue the running command's acceleration: it decelerates at once, so the
+    command never speeds up after the skill was given up (an acceleration step, deliberately).
     """
     T = float(stop_time)
     times = now + T * np.linspace(0.0, 1.0, 20)
