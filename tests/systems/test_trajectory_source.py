@@ -264,3 +264,46 @@ def test_a_replan_given_the_running_acceleration_continues_it():
     step = np.abs(a1 - a0).max()
     assert step < 0.1 * np.abs(desired_at(without, HOME, now)[2] - a0).max(), step
     assert step < 0.5, step   # rad/s^2 (measured 0.04, against 5.2 without a0)
+
+
+def test_a_mean_sample_on_a_clock_boundary_gives_no_repeated_knot():
+    # 2.475 s = 99 x 0.025: a one-demonstration component of 100 frames at 40 Hz; a sample within
+    # rounding of 2 tail repeated a knot's time and Drake refused the spline (review of the change)
+    rng = np.random.default_rng(0)
+    mean = HOME + 0.5 * np.sin(np.linspace(0, 3, 100))[:, None] * rng.uniform(-1, 1, 7)
+    # every duration that puts one of the 100 samples on 2 tail = 0.5 s (42 cases with 6 start times
+    # repeated a knot before the fix; 2.4750000000000005 = 0.25 / (1 - 89 / 99) among them)
+    durations = [0.25 / (1 - i / 99) for i in range(1, 99) if 0.25 / (1 - i / 99) > 1.667]
+    for duration in durations:
+        for start in (0.0, 1.0, 2.0, 5.0, 17.25, 100.0):
+            traj = ConditionedTrajectory(0, mean, 0 * mean, duration, start)
+            times, _ = plan_knots(traj, HOME, LOWER, UPPER, start=start)
+            assert np.diff(times).min() > 1e-9, (duration, start)
+    for duration in (durations[0], 0.25 / (1 - 89 / 99)):
+        build_plan(ConditionedTrajectory(0, mean, 0 * mean, duration, 17.25), HOME, LOWER, UPPER, start=17.25)
+
+
+def test_a_blend_slowed_down_from_a_strong_acceleration_stays_short_and_inside_the_limits():
+    # the acceleration bump's velocity grows with the stretch: with a0 >= 4 rad/s^2 the loop ran to
+    # a 240 s plan 0.28 rad past the joint limits; a slowed-down blend now drops the bump
+    from drake_skills.systems.trajectory_source import blend_plan, peak_speed_ratio
+
+    lower, upper = np.radians([-170, -120, -170, -120, -170, -120, -175]), np.radians([170, 120, 170, 120, 170, 120, 175])
+    vmax = np.radians([85, 85, 100, 75, 130, 135, 135])
+    q0 = HOME.copy()
+    s = np.linspace(0, 1, 60)[:, None]
+    traj = ConditionedTrajectory(0, q0 + 1.5 * s, 0 * (q0 + s), 1.0, 0.0)   # faster than vmax: stretched
+    plan = blend_plan(traj, 0.5, q0, 0.8 * vmax, lower, upper, vmax, a0=np.full(7, 10.0))
+    assert plan.end_time - 0.5 < 5.0
+    assert peak_speed_ratio(plan, vmax) <= 1.0 + 1e-6
+    qs = plan.q.vector_values(np.linspace(plan.start_time, plan.end_time, 5000))
+    assert (qs <= upper[:, None] + 1e-9).all() and (qs >= lower[:, None] - 1e-9).all()
+
+
+def test_the_first_plan_starts_exactly_at_a_hold_pose_inside_the_margin():
+    near = HOME.copy()
+    near[1] = UPPER[1] - 0.005   # inside the 0.02 margin: the first knot was clipped (a 0.015 rad step)
+    plan = build_plan(_traj(1.0), near, LOWER, UPPER)
+    q, v, _ = desired_at(plan, HOME, plan.start_time)
+    np.testing.assert_allclose(q, near, atol=1e-12)
+    np.testing.assert_allclose(v, 0.0, atol=1e-12)
