@@ -115,9 +115,10 @@ def run(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         stopped = "stopped by Ctrl-C"
     except (RuntimeError, SystemExit) as exc:  # e.g. Drake's status receiver on a message of another robot
-        stopped = f"error: {' '.join(str(exc).split())}"
-        print(f"drake-skills control: error: the controller stopped (no more commands are sent): {exc}. A status "
-              f"on '{c.status_channel}' with num_joints other than 7 is what Drake's receiver refuses this way",
+        what = " ".join(str(exc).split()) or type(exc).__name__
+        stopped = f"error: {what}"
+        hint = (f" (a status on '{c.status_channel}' whose num_joints is not 7)" if "num_joints" in what else "")
+        print(f"drake-skills control: error: the controller stopped, no more commands are sent: {what}{hint}",
               file=sys.stderr)
     records = [_jsonable(asdict(t)) for t in runner.trials[:args.trials]]
     if not stopped.endswith("done"):

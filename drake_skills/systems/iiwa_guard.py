@@ -14,12 +14,14 @@ that goes to the robot, watching the robot's status (as decoded by pydrake's
   position has come back within ``resume_tolerance`` of the frozen command (in practice:
   at the next trial, whose hold pose is latched from the measured position), so the robot
   never jumps to catch up;
-* a new status whose position is more than ``max_lag`` from the command while it follows
-  (the robot stopped on its own, e.g. a protective stop, while the command ran on), or more
-  than ``hold_lag`` while it holds (the robot was moved or restarted during a status gap),
-  re-latches the command to the measured position and holds it, as after a stale status: the
-  command never leads the robot by more than ``max_lag``, and never jumps back to where a
-  moved robot was;
+* a new status whose position is more than ``max_lag`` from the command while it follows,
+  or more than ``hold_lag`` while it holds, means the robot is not where it is commanded. If
+  the status says the robot is at rest (every joint under ``rest_speed``: a protective stop, a
+  robot moved or restarted during a status gap), the command is set to the measured position;
+  if it still moves (statuses arriving late), a following command is frozen where it is, and a
+  held one waits. Either way the command holds until the next trial (its initialization):
+  it never leads the robot by more than ``max_lag``, never jumps back to where a moved robot
+  was, and never resumes mid-trial against a robot it lost;
 * a desired position that is not finite holds the command;
 * a status whose positions are not finite counts as not received, and the controller's
   measured state is the last good status (a trial starting on a bad message latches it).
@@ -63,6 +65,8 @@ class GuardLimits:
         simulated station lags up to 0.07 rad (0.15 with 20 ms of bus latency).
     hold_lag : float
         The same while holding, when the robot should be at the command.
+    rest_speed : float
+        A status whose joint speeds are all below this (rad/s) says the robot is at rest there.
     """
 
     lower: np.ndarray
@@ -74,6 +78,7 @@ class GuardLimits:
     resume_tolerance: float = 0.01
     max_lag: float = 0.3
     hold_lag: float = 0.05
+    rest_speed: float = 0.05
 
     def __post_init__(self):
         lower, upper, v_max = (np.asarray(a, float).copy() for a in (self.lower, self.upper, self.v_max))
@@ -82,7 +87,7 @@ class GuardLimits:
             raise ValueError(f"GuardLimits: lower, upper and v_max must have shape ({n},)")
         if (upper - lower <= 2 * self.margin).any() or (v_max <= 0).any():
             raise ValueError("GuardLimits: need upper - lower > 2 margin and v_max > 0")
-        for name in ("period", "stale_timeout", "resume_tolerance", "max_lag", "hold_lag"):
+        for name in ("period", "stale_timeout", "resume_tolerance", "max_lag", "hold_lag", "rest_speed"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"GuardLimits.{name} must be positive, got {v!r}")
@@ -125,7 +130,9 @@ class GuardState:
     measured, velocity : array, shape (n,), or None
         The newest good (finite) status's joint positions and velocities (None: none yet).
     lag_events : int
-        Times a fresh status was more than ``max_lag`` from the command (re-latched).
+        Times a new status found the robot too far from the command (see the module).
+    needs_trial : bool
+        The robot was lost that way: hold until the next trial starts (the guard's initialization).
     """
 
     command: np.ndarray | None = None
@@ -137,20 +144,22 @@ class GuardState:
     measured: np.ndarray | None = None
     velocity: np.ndarray | None = None
     lag_events: int = 0
+    needs_trial: bool = False
 
     def status_age(self, time: float) -> float:
         """Seconds since the newest status arrived (inf: none yet)."""
         return math.inf if math.isnan(self.arrival_time) else time - self.arrival_time
 
     def to_vector(self, n: int) -> np.ndarray:
-        """The state as the guard's discrete state vector (3 n + 8,)."""
+        """The state as the guard's discrete state vector (3 n + 9,)."""
         nan = np.full(n, np.nan)
         command = self.command if self.command is not None else nan
         measured = self.measured if self.measured is not None else nan
         velocity = self.velocity if self.velocity is not None else nan
         return np.concatenate([command, [self.status_time, self.arrival_time, float(self.holding), self.limited,
                                          self.stale_events, float(self.command is not None)],
-                               measured, velocity, [float(self.measured is not None), self.lag_events]])
+                               measured, velocity, [float(self.measured is not None), self.lag_events,
+                                                    float(self.needs_trial)]])
 
     @classmethod
     def from_vector(cls, x: np.ndarray, n: int) -> "GuardState":
@@ -159,7 +168,7 @@ class GuardState:
         has = x[3 * n + 6] > 0.5
         return cls(np.array(x[:n]) if x[n + 5] > 0.5 else None, float(x[n]), float(x[n + 1]), bool(x[n + 2] > 0.5),
                    int(x[n + 3]), int(x[n + 4]), np.array(x[m:m + n]) if has else None,
-                   np.array(x[m + n:m + 2 * n]) if has else None, int(x[3 * n + 7]))
+                   np.array(x[m + n:m + 2 * n]) if has else None, int(x[3 * n + 7]), bool(x[3 * n + 8] > 0.5))
 
 
 def status_received(q_measured: np.ndarray, status_time: float) -> bool:
@@ -207,7 +216,7 @@ def guard_step(state: GuardState, time: float, q_measured: np.ndarray, status_ti
         velocity = np.array(q_velocity, float) if q_velocity is not None else np.zeros_like(measured)
         if new_status:
             status_t, arrival = float(status_time), float(time)
-    keep = dict(measured=measured, velocity=velocity, lag_events=state.lag_events)
+    keep = dict(measured=measured, velocity=velocity, lag_events=state.lag_events, needs_trial=state.needs_trial)
     q = state.command
     if q is None:
         if not received:
@@ -221,12 +230,18 @@ def guard_step(state: GuardState, time: float, q_measured: np.ndarray, status_ti
     # only a new status says where the robot is now (between statuses the last one ages)
     if new_status and not stale and float(np.max(np.abs(q - q_measured))) > (limits.hold_lag if holding
                                                                              else limits.max_lag):
-        # the robot is not where it is commanded: re-latch to it and hold (no jump to the old command)
-        q = np.minimum(np.maximum(q_measured, limits.lower), limits.upper)
-        keep["lag_events"] = state.lag_events + 1
-        return GuardState(q, status_t, arrival, True, state.limited, stale_events, **keep)
+        at_rest = q_velocity is None or not np.isfinite(q_velocity).all() or \
+            float(np.max(np.abs(q_velocity))) <= limits.rest_speed
+        if at_rest or not holding:
+            # at rest there: command it there (no jump back); still moving: freeze a following command
+            if at_rest:
+                q = np.minimum(np.maximum(q_measured, limits.lower), limits.upper)
+            keep["lag_events"], keep["needs_trial"] = state.lag_events + 1, True
+            return GuardState(q, status_t, arrival, True, state.limited, stale_events, **keep)
+        # held, and the robot still moves towards the held command (a late status): wait
     desired_ok = bool(np.isfinite(q_desired).all())
-    if holding and fresh and desired_ok and float(np.max(np.abs(q_desired - q))) <= limits.resume_tolerance:
+    if holding and fresh and desired_ok and not keep["needs_trial"] and \
+            float(np.max(np.abs(q_desired - q))) <= limits.resume_tolerance:
         holding = False
     if holding or not desired_ok:
         return GuardState(q, status_t, arrival, holding, state.limited, stale_events, **keep)
@@ -305,7 +320,12 @@ class IiwaCommandGuard(LeafSystem):
     def _initialize(self, context: Context, discrete_state: DiscreteValues) -> None:
         old = self.guard_state(context)
         if old.command is not None:
-            return  # a new trial of a running controller: keep commanding from where we are
+            # a new trial of a running controller: keep commanding from where we are; a robot lost in
+            # the last trial may be followed again (its hold pose is latched from its measured position)
+            if old.needs_trial:
+                discrete_state.get_mutable_vector(self._state).SetFromVector(
+                    replace(old, needs_trial=False).to_vector(self._n))
+            return
         q, t = np.asarray(self._measured.Eval(context)), float(self._time.Eval(context)[0])
         if not status_received(q, t):
             raise RuntimeError(f"IiwaCommandGuard: no lcmt_iiwa_status received on '{self._channel}'; the "

@@ -135,7 +135,30 @@ def test_a_robot_moved_during_a_status_gap_is_re_latched_not_jumped_back_to():
         state = guard_step(state, t, jogged, t, HOME_Q, LIMITS)
         np.testing.assert_allclose(state.command, jogged)
     state = guard_step(state, t + LIMITS.period, jogged, t + LIMITS.period, jogged + 0.004, LIMITS)
+    assert state.holding and state.needs_trial   # not mid-trial, even where the desired path passes by
+    from dataclasses import replace
+    state = replace(state, needs_trial=False)    # what the guard's initialization does at the next trial
+    state = guard_step(state, t + 2 * LIMITS.period, jogged, t + 2 * LIMITS.period, jogged + 0.004, LIMITS)
     assert not state.holding   # the next trial's hold pose, latched from the measured position
+
+
+def test_late_statuses_of_a_moving_robot_freeze_the_command_without_a_jump():
+    # statuses that arrive late (new ones keep coming, so not stale) of a robot that still moves: the
+    # command must not jump back to where the robot was (the first form stepped 0.31 rad in 5 ms,
+    # then re-latched 12 times: a sawtooth)
+    q_cmd = HOME_Q + 0.5
+    state = GuardState(q_cmd, 0.0, 0.0, False, measured=HOME_Q + 0.45, velocity=np.zeros(7))
+    moving = np.full(7, 1.5)
+    for k in range(1, 40):
+        t = k * LIMITS.period
+        reported = q_cmd - 0.35 + 0.3 * k * LIMITS.period   # 0.35 rad behind, catching up
+        state = guard_step(state, t, reported, t, q_cmd + 0.1 * t, LIMITS, q_velocity=moving)
+        np.testing.assert_allclose(state.command, q_cmd)     # frozen where it was: no jump, no sawtooth
+    assert state.holding and state.needs_trial and state.lag_events == 1
+    # at rest far from the held command (it stopped there): commanded where it is, still until the next trial
+    state = guard_step(state, 1.0, HOME_Q, 1.0, HOME_Q, LIMITS, q_velocity=np.zeros(7))
+    np.testing.assert_allclose(state.command, HOME_Q)
+    assert state.holding and state.needs_trial and state.lag_events == 2
 
 
 def test_a_robot_that_stops_on_its_own_is_never_led_by_more_than_max_lag():
