@@ -116,6 +116,7 @@ def test_sample_is_seeded_and_matches_moments():
     for bad in (0, -1, 2.5, True):   # 0 was numpy's "cannot reshape array of size 0"
         with pytest.raises(ValueError, match="n must be a positive integer"):
             p.sample(bad)
+    assert p.sample(1)[0].shape == (1, 100, 2)   # one draw is fine
 
 
 def test_interaction_rejects_bad_input():
