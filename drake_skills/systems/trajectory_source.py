@@ -149,12 +149,20 @@ def build_plan(traj: ConditionedTrajectory, q_hold: np.ndarray, lower: np.ndarra
     source passes the moment it sees the trajectory, never earlier, so the robot starts
     at rest from where it holds).
     """
-    stretch = 1.0
-    for _ in range(12):
+    def at(stretch: float) -> JointPlan:
         times, q = plan_knots(traj, q_hold, lower, upper, start=start, stretch=stretch)
         pp = PiecewisePolynomial.CubicShapePreserving(times, q.T, zero_end_point_derivatives=True)
         qd = pp.derivative(1)
-        plan = JointPlan(traj, pp, qd, qd.derivative(1))
+        return JointPlan(traj, pp, qd, qd.derivative(1))
+
+    return _within_speed(at, vmax)
+
+
+def _within_speed(plan_at, vmax: np.ndarray | None) -> JointPlan:
+    """``plan_at(stretch)`` at 1, then played slower (``stretch`` up, at most 12 times) until no joint exceeds ``vmax``."""
+    stretch = 1.0
+    for _ in range(12):
+        plan = plan_at(stretch)
         if vmax is None:
             return plan
         ratio = peak_speed_ratio(plan, vmax)
@@ -238,8 +246,8 @@ def blend_plan(traj: ConditionedTrajectory, now: float, q0: np.ndarray, v0: np.n
         return smooth(np.clip(tau, t_traj[0], t_traj[-1]))
 
     end = max(t_traj[-1] + 2.0 * tail, now + blend_time)
-    stretch = 1.0
-    for _ in range(12):
+
+    def at(stretch: float) -> JointPlan:
         span = (end - now) * stretch
         times = now + span * np.linspace(0.0, 1.0, max(n, 20) + 20)
         # the trajectory's own clock, slowed by `stretch` after now
@@ -256,14 +264,9 @@ def blend_plan(traj: ConditionedTrajectory, now: float, q0: np.ndarray, v0: np.n
             q += np.outer(_acceleration_bump(sig, T_b), np.asarray(a0, float) - p_ddot + 6.0 / T_b * (v0 - p_dot))
         q = np.clip(q, np.asarray(lower) + margin, np.asarray(upper) - margin)
         q[0] = q0
-        plan = _fit(times, q, v0, traj)
-        if vmax is None:
-            return plan
-        ratio = peak_speed_ratio(plan, vmax)
-        if ratio <= 1.0:
-            return plan
-        stretch *= 1.05 * ratio
-    return plan
+        return _fit(times, q, v0, traj)
+
+    return _within_speed(at, vmax)
 
 
 def stop_plan(now: float, q0: np.ndarray, v0: np.ndarray, lower: np.ndarray, upper: np.ndarray, *,
