@@ -81,6 +81,17 @@ def check_increasing(t: np.ndarray, name: str = "t", where: str | None = None) -
                          f"{name}[{i}]={t[i]:g} then {name}[{i + 1}]={t[i + 1]:g}")
 
 
+def check_integer(value, name: str, lo: int) -> int:
+    """``value`` as an int >= ``lo`` (a whole float counts; bool, nan, inf and text do not), else a ValueError naming ``name``."""
+    try:
+        whole = not isinstance(value, bool) and int(value) == value
+    except (TypeError, ValueError, OverflowError):
+        whole = False
+    if not whole or value < lo:
+        raise ValueError(f"{name} must be an integer >= {lo}, got {value!r}")
+    return int(value)
+
+
 def check_positive(value: float, name: str) -> float:
     value = float(value)
     if not np.isfinite(value) or value <= 0:

@@ -12,6 +12,7 @@ from typing import Optional
 
 import numpy as np
 
+from drake_skills._checks import check_integer
 from drake_skills.data.workspace import Workspace
 from drake_skills.promp.basis import GaussianBasis
 
@@ -157,14 +158,7 @@ class LibraryConfig:
     def __post_init__(self):
         ints = {"n_samples": 4, "n_basis_human": 2, "n_basis_robot": 2, "merge_min_age": 0, "delete_min_age": 0}
         for name, lo in ints.items():
-            v = getattr(self, name)
-            try:
-                whole = not isinstance(v, bool) and int(v) == v
-            except (TypeError, ValueError, OverflowError):  # nan, inf, a string
-                whole = False
-            if not whole or v < lo:
-                raise ValueError(f"LibraryConfig.{name} must be an integer >= {lo}, got {v!r}")
-            setattr(self, name, int(v))
+            setattr(self, name, check_integer(getattr(self, name), f"LibraryConfig.{name}", lo))
         positive = ["basis_width", "prior_scale", "prior_strength", "expert_prior", "observation_noise"]
         for name in positive:
             v = getattr(self, name)

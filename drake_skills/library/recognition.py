@@ -25,6 +25,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from drake_skills._checks import check_integer
 from drake_skills.data.workspace import Workspace
 from drake_skills.library.algorithm import ComponentModel, gating_scores, responsibilities
 from drake_skills.library.gain import scale_correction
@@ -254,7 +255,7 @@ class RecognitionMixin:
         if cfg.conditioning_gain:  # Eq. (13)'s correction scaled by the learned gains (library.gain)
             gains = np.tile(self._gain.gains(), self.dim_robot_)
             mean_w, cov_w = scale_correction(prior_w, prior_cov, mean_w, cov_w, gains)
-        n = cfg.n_samples if n_steps is None else _count(n_steps, "n_steps", 2)
+        n = cfg.n_samples if n_steps is None else check_integer(n_steps, "n_steps", 2)
         mean_r = cfg.basis_robot.phi_uniform(n) @ mean_w.reshape(self.dim_robot_, -1).T
         cov_r = trajectory_covariance(cov_w, cfg.basis_robot, self.dim_robot_, n_steps=n)
         return mean_r, cov_r
@@ -353,17 +354,6 @@ class RecognitionMixin:
                           np.array([1.0 + 1.0 / c.support]), pm.chol, cfg.basis_human, self._noise(),
                           self._prefix_cache())
         return float(sc.phases[0])
-
-
-def _count(value, name: str, lo: int) -> int:
-    """``value`` as an int >= ``lo``, or a ValueError naming ``name`` (0 and 2.5 were taken silently)."""
-    try:
-        whole = not isinstance(value, bool) and int(value) == value
-    except (TypeError, ValueError, OverflowError):
-        whole = False
-    if not whole or value < lo:
-        raise ValueError(f"{name} must be an integer >= {lo}, got {value!r}")
-    return int(value)
 
 
 @lru_cache(maxsize=16)
