@@ -17,7 +17,7 @@ from drake_skills.benchmarks._timing import median_ms
 
 def run(quick: bool = False, config=None) -> list[dict]:
     from drake_skills.library.incremental import LibraryConfig, SkillLibrary
-    from drake_skills.promp.preprocessing import vertex_indices
+    from drake_skills.promp.preprocessing import vertex_path
     from drake_skills.scenario.salad import generate_subject
 
     lib_config = config.library if config is not None else LibraryConfig()
@@ -33,8 +33,7 @@ def run(quick: bool = False, config=None) -> list[dict]:
     for t in tasks:
         for d in data.by_task(t)[6:]:
             y = ws.normalize(d.human, subtract_start=lib_config.subtract_start)
-            idx = vertex_indices(y, lib_config.resample_tolerance)
-            s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(y[idx], axis=0), axis=1))])
+            idx, _, s = vertex_path(y, lib_config.resample_tolerance, adapt_to_noise=lib_config.adapt_to_noise)
             for f in rng.uniform(0.2, 0.8, 2 if quick else 6):
                 prefixes.append(y[: idx[np.searchsorted(s, f * s[-1])] + 1])
     repeats = 20 if quick else 200

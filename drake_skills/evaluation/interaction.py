@@ -46,7 +46,7 @@ from drake_skills.data.workspace import Workspace
 from drake_skills.evaluation.common import EvalReport, Table, run_trials, trial_rng
 from drake_skills.evaluation.labeled import CORRECT, UNKNOWN, WRONG, LabeledLibrary, outcome_fractions
 from drake_skills.library.incremental import LibraryConfig
-from drake_skills.promp.preprocessing import arc_length, resample_in_time, vertex_indices
+from drake_skills.promp.preprocessing import resample_in_time, vertex_path
 
 STREAM_INTERACTION = 7
 #: Recognition from the wrist alone in chenlx92/ipromps (Interaction ProMPs with phase
@@ -177,18 +177,19 @@ def workspace_of(demos) -> Workspace:
     return Workspace(H.min(axis=0), H.max(axis=0))
 
 
-def prefix_end(human: np.ndarray, workspace: Workspace, fraction: float, tolerance: float) -> int:
+def prefix_end(human: np.ndarray, workspace: Workspace, fraction: float, tolerance: float, *,
+               adapt_to_noise: bool = False) -> int:
     """How many samples of ``human`` cover ``fraction`` of its path length, as the library measures it.
 
     The path is the library's: normalized by ``workspace`` (Eq. 14) and counted only
     between vertices more than ``tolerance`` apart
-    (:func:`~drake_skills.promp.preprocessing.path_vertices`). Returns the number of
+    (:func:`~drake_skills.promp.preprocessing.vertex_path`, with the library's
+    ``adapt_to_noise``). Returns the number of
     leading samples up to and including the first vertex at or past ``fraction`` of
     the whole path (at least 2).
     """
     y = workspace.normalize(human)
-    idx = vertex_indices(y, tolerance)
-    _, s = arc_length(y, tolerance)
+    idx, _, s = vertex_path(y, tolerance, adapt_to_noise=adapt_to_noise)
     k = int(np.searchsorted(s, fraction * s[-1] * (1 - 1e-12)))
     return max(2, int(idx[min(k, len(idx) - 1)]) + 1)
 
@@ -257,7 +258,8 @@ def replay_commits(library, demo: Demonstration, workspace: Workspace, rule=None
     return gating_step(state, t_end, y[-1], library, rule), False
 
 
-def commit_share(demo: Demonstration, workspace: Workspace, tolerance: float, commit_time: float) -> float:
+def commit_share(demo: Demonstration, workspace: Workspace, tolerance: float, commit_time: float, *,
+                 adapt_to_noise: bool = False) -> float:
     """Share of the person's whole path done at ``commit_time`` (s from the start), as the demo reports it.
 
     :func:`~drake_skills.sim.demo.path_progress` (the library's arc length) at that time;
@@ -267,7 +269,7 @@ def commit_share(demo: Demonstration, workspace: Workspace, tolerance: float, co
 
     if not np.isfinite(commit_time):
         return float("nan")
-    t, share = path_progress(demo, workspace, tolerance)
+    t, share = path_progress(demo, workspace, tolerance, adapt_to_noise=adapt_to_noise)
     return float(np.interp(commit_time, t, share))
 
 
@@ -306,7 +308,7 @@ def interaction_trial(ctx: InteractionContext, index: int) -> InteractionTrial:
             errs[:, i] = (_rms(mean, ctx.test_robot[i]), _rms(prior, ctx.test_robot[i]),
                           _rms(ctx.task_mean[d.task], ctx.test_robot[i]))
         for k, f in enumerate(s.fractions):
-            end = prefix_end(d.human, ctx.workspace, f, cfg.resample_tolerance)
+            end = prefix_end(d.human, ctx.workspace, f, cfg.resample_tolerance, adapt_to_noise=cfg.adapt_to_noise)
             r = lib.recognize(d.human[:end])
             p_out[i, k] = lab.outcome(r.component, d.task, r.status)
             if r.status == "skill":
@@ -314,7 +316,8 @@ def interaction_trial(ctx: InteractionContext, index: int) -> InteractionTrial:
         g, rest[i] = replay_commits(lib, d, ctx.workspace)
         if g.commits:
             first[i] = lab.outcome(g.commits[0], d.task)
-            share[i] = commit_share(d, ctx.workspace, cfg.resample_tolerance, g.commit_time)
+            share[i] = commit_share(d, ctx.workspace, cfg.resample_tolerance, g.commit_time,
+                                    adapt_to_noise=cfg.adapt_to_noise)
         executed[i] = lab.outcome(g.component, d.task, g.status)
     labels = tuple(lab.label_of(c.id) for c in lib.components)
     return InteractionTrial(lib.n_components, outcomes, d2_min, d2_thr, errs[0], errs[1], errs[2], p_out, p_phase,

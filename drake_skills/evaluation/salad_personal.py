@@ -30,7 +30,7 @@ from drake_skills.evaluation.labeled import (CORRECT, UNKNOWN, WRONG, LabeledLib
                                              outcome_fractions)
 from drake_skills.evaluation.salad_data import SaladContext, SaladSettings
 from drake_skills.library.incremental import SkillLibrary
-from drake_skills.promp.preprocessing import resample_in_time, vertex_indices
+from drake_skills.promp.preprocessing import resample_in_time, vertex_path
 from drake_skills.sim.models import FlangeKinematics
 
 #: Random stream of the splits (second seed word).
@@ -87,7 +87,8 @@ class PersonalContext:
     flange_position: FlangeKinematics = field(default_factory=FlangeKinematics)
 
 
-def observed_prefix(human: np.ndarray, fraction: float, workspace=None, tolerance: float = 0.0) -> np.ndarray:
+def observed_prefix(human: np.ndarray, fraction: float, workspace=None, tolerance: float = 0.0, *,
+                    adapt_to_noise: bool = False) -> np.ndarray:
     """The first ``fraction`` of a motion's path length (measured in the normalized workspace).
 
     The cut falls between two samples; the last row is interpolated there, so the
@@ -104,6 +105,9 @@ def observed_prefix(human: np.ndarray, fraction: float, workspace=None, toleranc
         measured through the same vertices the library uses
         (:func:`~drake_skills.promp.preprocessing.path_vertices`), so the prefix
         is ``fraction`` of the length the library sees.
+    adapt_to_noise : bool
+        The library's ``adapt_to_noise``. When it smooths a noisy motion the cut is
+        placed on the smoothed path's length and interpolated between the raw samples.
 
     Returns
     -------
@@ -116,11 +120,10 @@ def observed_prefix(human: np.ndarray, fraction: float, workspace=None, toleranc
     if f == 1.0:
         return human
     y = workspace.normalize(human, subtract_start=False) if workspace is not None else human
-    idx = vertex_indices(y, tolerance)
-    human, y = human[idx], y[idx]
+    idx, _, s = vertex_path(y, tolerance, adapt_to_noise=adapt_to_noise)
+    human = human[idx]
     if human.shape[0] < 2:
         raise ValueError("the motion does not move beyond the tolerance: no prefix to observe")
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(y, axis=0), axis=1))])
     target = f * s[-1]
     i = int(np.searchsorted(s, target, side="right"))  # s[i-1] <= target < s[i]
     i = min(max(i, 1), len(s) - 1)
@@ -151,7 +154,8 @@ def response_errors(lab: LabeledLibrary, demo: Demonstration, workspace: Workspa
     p_demo = flange_position(demo.robot[-1])
     targets = {}
     for i, f in enumerate(fractions):
-        human = observed_prefix(demo.human, f, workspace, lib.config.resample_tolerance)
+        human = observed_prefix(demo.human, f, workspace, lib.config.resample_tolerance,
+                                adapt_to_noise=lib.config.adapt_to_noise)
         outcome, comp = lab.classify(human, demo.task, workspace, f)
         out["outcome"][i] = outcome
         rec = lib.recognize(human, workspace=workspace)  # the fraction not given: the phase is estimated

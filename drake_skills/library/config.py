@@ -85,6 +85,13 @@ class LibraryConfig:
     #: data, 0.5 mm at 150 Hz), the phase becomes partly time-like and the hold at
     #: the end of a reach takes a fifth of it.
     resample_tolerance: float = 0.1
+    #: A motion whose tracker noise exceeds 0.4 of ``resample_tolerance`` (a camera skeleton
+    #: tracker: 5-20 mm) is smoothed over at most 2 samples and walked with a tolerance that
+    #: grows with the noise left (``promp.preprocessing.vertex_path``); below that share
+    #: nothing changes (every data set we have). Without it 5-20 mm of noise on the
+    #: buetepage interactions made 3-16 % wrong answers; with it none (RESULTS.md, "Tracker
+    #: noise"). A deviation from the paper; false: the plain walk.
+    adapt_to_noise: bool = True
     #: Default workspace for human data (None: data is already normalized);
     #: a per-call ``workspace`` argument overrides it (one per subject).
     workspace: Optional[WorkspaceBounds] = None
@@ -177,7 +184,7 @@ class LibraryConfig:
         if self.split_quantile <= self.merge_quantile:
             raise ValueError(f"LibraryConfig.split_quantile ({self.split_quantile}) must be above merge_quantile "
                              f"({self.merge_quantile}), or a merge would be split again at once")
-        for name in ("basis_normalized", "subtract_start", "conditioning_gain"):
+        for name in ("basis_normalized", "subtract_start", "conditioning_gain", "adapt_to_noise"):
             v = getattr(self, name)
             if not isinstance(v, (bool, np.bool_)):   # "no" would act as true
                 raise ValueError(f"LibraryConfig.{name} must be true or false, got {v!r}")

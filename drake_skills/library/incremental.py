@@ -393,7 +393,7 @@ class SkillLibrary(RecognitionMixin, FileMixin):
             elif cfg.subtract_start:
                 human = human - human[0]
         with np.errstate(over="ignore", invalid="ignore"):  # an overflowing path is refused just below
-            vertices, s = arc_length(human, cfg.resample_tolerance)
+            vertices, s = arc_length(human, cfg.resample_tolerance, adapt_to_noise=cfg.adapt_to_noise)
         if not np.isfinite(s[-1]):
             raise ValueError(f"{where + ': ' if where else ''}human positions are too large: their path length "
                              f"overflows (largest |value| {np.abs(human).max():.3g}); check the units and the workspace")

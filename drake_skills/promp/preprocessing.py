@@ -14,18 +14,36 @@ import math
 
 import numpy as np
 
+from scipy.ndimage import gaussian_filter1d
+
 from drake_skills._checks import as_finite_array, check_increasing
 from drake_skills.data.workspace import Workspace
 
-__all__ = ["Workspace", "arc_length", "path_vertices", "resample_by_arc_length", "resample_in_time",
-           "vertex_indices"]
+__all__ = ["Workspace", "arc_length", "noise_level", "path_vertices", "resample_by_arc_length", "resample_in_time",
+           "vertex_indices", "vertex_path"]
+
+#: Tracker noise (per axis, :func:`noise_level`) may reach this share of the arc-length tolerance
+#: before the path adapts to it (``adapt_to_noise``): 1 / 2.5, chosen on the buetepage training
+#: split with 0-20 mm of added noise (RESULTS.md, "Tracker noise").
+NOISE_SHARE = 0.4
+#: Widest smoothing (Gaussian standard deviation, in samples) that ``adapt_to_noise`` applies:
+#: a few samples average tracker noise, more blur the motion itself (chosen on the buetepage
+#: training split: 3 gave fewer right answers; a cap from the motion's speed per sample was
+#: worse on both that split and LASA).
+MAX_SMOOTHING = 2.0
+#: The quantile of the second differences that :func:`noise_level` reads, and the same
+#: quantile of the chi distribution with 1..20 degrees of freedom (norm of a D-dimensional
+#: standard normal), precomputed (scipy.stats.chi.ppf(0.1, D)).
+_NOISE_QUANTILE = 0.1
+_CHI_Q10 = (0.12566, 0.45904, 0.76444, 1.03132, 1.26898, 1.48463, 1.68318, 1.86803, 2.04161, 2.20572,
+            2.36173, 2.51074, 2.65358, 2.79097, 2.92348, 3.0516, 3.17572, 3.2962, 3.41334, 3.52741)
 
 #: Points closer than this (in the trajectory's units, relative to the path
 #: length) count as standing still and are dropped before resampling.
 _STILL_TOLERANCE = 1e-9
 
 
-def path_vertices(y, tolerance: float = 0.0) -> np.ndarray:
+def path_vertices(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False) -> np.ndarray:
     """The samples that carry a path on: noise and standing still removed.
 
     Walks the samples in order and keeps one when it lies more than
@@ -43,21 +61,97 @@ def path_vertices(y, tolerance: float = 0.0) -> np.ndarray:
     tolerance : float
         In the units of ``y``; 0 keeps every sample that moves at all (only
         exact repeats are dropped).
+    adapt_to_noise : bool
+        See :func:`vertex_path`.
 
     Returns
     -------
     vertices : array, shape (M, D), M >= 1
     """
-    y = as_finite_array(y, "trajectory", ndim=2, min_rows=2)
-    return y[vertex_indices(y, tolerance)]
+    return vertex_path(y, tolerance, adapt_to_noise=adapt_to_noise)[1]
 
 
-def vertex_indices(y, tolerance: float = 0.0) -> np.ndarray:
-    """Indices of the samples :func:`path_vertices` keeps (increasing, first is 0)."""
+def noise_level(y) -> float:
+    """Estimated white tracker noise of a motion, per axis, in the units of ``y``.
+
+    From the second differences of the samples that moved (a tracker that repeats its last
+    value between frames adds none): for white noise of standard deviation sigma per axis a
+    second difference is sigma sqrt(6) times a chi-distributed norm, and a smooth motion
+    sampled densely adds little to it at its slowest tenth (rests, constant speed). The
+    lowest decile read as the noise is therefore an upper bound that is tight for noise
+    above the motion's own curvature per sample, and 0 for a motion without noise.
+    Returns 0 for fewer than 5 moving samples.
+    """
+    y = np.asarray(y, dtype=float)
+    if y.ndim != 2 or not 1 <= y.shape[1] <= len(_CHI_Q10):
+        return 0.0
+    d = np.diff(y, axis=0)
+    moved = np.any(d != 0, axis=1)
+    if not moved.all():
+        d = np.diff(y[np.concatenate([[True], moved])], axis=0)
+    if len(d) < 4:
+        return 0.0
+    d2 = d[1:] - d[:-1]
+    sq = np.einsum("ij,ij->i", d2, d2)
+    k = int(_NOISE_QUANTILE * (len(sq) - 1))        # the lower order statistic at the quantile
+    return math.sqrt(float(np.partition(sq, k)[k])) / (math.sqrt(6.0) * _CHI_Q10[y.shape[1] - 1])
+
+
+def _denoised(y: np.ndarray, tol: float) -> tuple[np.ndarray, float]:
+    """The samples and the tolerance the path walk uses when it adapts to the tracker's noise.
+
+    Unchanged while the noise is at most ``NOISE_SHARE`` of the tolerance (every data set
+    we have: its clean motions lie at 0-0.1 of it). Above, a Gaussian of at most
+    ``MAX_SMOOTHING`` samples averages the noise towards that share, and the tolerance
+    grows to 1 / NOISE_SHARE times what is left, so that a hold adds no path length.
+    """
+    sigma = noise_level(y)
+    if not sigma > NOISE_SHARE * tol:
+        return y, tol
+    width = min(MAX_SMOOTHING, (sigma / (NOISE_SHARE * tol)) ** 2 / (2.0 * math.sqrt(math.pi)))
+    if width >= 0.5:
+        y = gaussian_filter1d(y, width, axis=0, mode="nearest")
+        sigma = sigma / math.sqrt(2.0 * math.sqrt(math.pi) * width)
+    return y, max(tol, sigma / NOISE_SHARE)
+
+
+def vertex_path(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The path walk of :func:`path_vertices` with the indices of its vertices and its arc length.
+
+    With ``adapt_to_noise`` (and a positive ``tolerance``) a motion whose tracker noise
+    (:func:`noise_level`) exceeds ``NOISE_SHARE`` of the tolerance is smoothed over at
+    most ``MAX_SMOOTHING`` samples and walked with a tolerance of 1 / ``NOISE_SHARE``
+    times the noise left, so the vertices are smoothed samples (a deviation from the
+    paper, which resamples the raw positions; RESULTS.md, "Tracker noise"). Below that
+    share the walk is exactly the plain one.
+
+    Returns
+    -------
+    indices : array, shape (M,)
+        Of the samples the walk keeps (increasing, first is 0).
+    vertices : array, shape (M, D)
+    s : array, shape (M,)
+        Cumulative arc length, ``s[0] = 0``.
+    """
     y = as_finite_array(y, "trajectory", ndim=2, min_rows=2)
     tol = float(tolerance)
     if not (np.isfinite(tol) and tol >= 0):
         raise ValueError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
+    if adapt_to_noise and tol > 0:
+        y, tol = _denoised(y, tol)
+    idx = _walk(y, tol)
+    v = y[idx]
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(v, axis=0), axis=1))])
+    return idx, v, s
+
+
+def vertex_indices(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False) -> np.ndarray:
+    """Indices of the samples :func:`path_vertices` keeps (increasing, first is 0)."""
+    return vertex_path(y, tolerance, adapt_to_noise=adapt_to_noise)[0]
+
+
+def _walk(y: np.ndarray, tol: float) -> np.ndarray:
     step = np.linalg.norm(np.diff(y, axis=0), axis=1)
     total = step.sum()
     if tol == 0.0:
@@ -78,7 +172,7 @@ def vertex_indices(y, tolerance: float = 0.0) -> np.ndarray:
     return np.asarray(kept, dtype=int)
 
 
-def arc_length(y, tolerance: float = 0.0):
+def arc_length(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False):
     """Path vertices and their cumulative arc length (see :func:`path_vertices`).
 
     Returns
@@ -87,12 +181,11 @@ def arc_length(y, tolerance: float = 0.0):
     s : array, shape (M,)
         ``s[0] = 0``, non-decreasing; ``s[-1]`` is the path length.
     """
-    v = path_vertices(y, tolerance)
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(v, axis=0), axis=1))])
+    _, v, s = vertex_path(y, tolerance, adapt_to_noise=adapt_to_noise)
     return v, s
 
 
-def resample_by_arc_length(y, n_samples: int, tolerance: float = 0.0) -> np.ndarray:
+def resample_by_arc_length(y, n_samples: int, tolerance: float = 0.0, *, adapt_to_noise: bool = False) -> np.ndarray:
     """Resample a path at ``n_samples`` points equally spaced along its length.
 
     Robust to standing still (repeated points) at the start, the end or in
@@ -114,7 +207,7 @@ def resample_by_arc_length(y, n_samples: int, tolerance: float = 0.0) -> np.ndar
     y = as_finite_array(y, "trajectory", ndim=2, min_rows=2)
     if n_samples < 2:
         raise ValueError(f"n_samples must be >= 2, got {n_samples}")
-    v, s = arc_length(y, tolerance)
+    v, s = arc_length(y, tolerance, adapt_to_noise=adapt_to_noise)
     if not s[-1] > 0:
         raise ValueError("trajectory does not move: its path length is 0")
     grid = np.linspace(0.0, s[-1], n_samples)

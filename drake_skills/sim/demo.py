@@ -188,7 +188,8 @@ def _jsonable(x):
     return x
 
 
-def path_progress(demo: Demonstration, workspace: Workspace, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+def path_progress(demo: Demonstration, workspace: Workspace, tolerance: float, *,
+                  adapt_to_noise: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """The demonstration's share of its path done over time, as the library measures paths.
 
     Returns
@@ -198,12 +199,10 @@ def path_progress(demo: Demonstration, workspace: Workspace, tolerance: float) -
     share : array, shape (M,)
         Arc length done by then over the whole path length (0 to 1, non-decreasing).
     """
-    from drake_skills.promp.preprocessing import vertex_indices
+    from drake_skills.promp.preprocessing import vertex_path
 
     y = workspace.normalize(demo.human, subtract_start=False)
-    idx = vertex_indices(y, tolerance)
-    v = y[idx]
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(v, axis=0), axis=1))])
+    idx, _, s = vertex_path(y, tolerance, adapt_to_noise=adapt_to_noise)
     return demo.t[idx] - demo.t[0], s / max(s[-1], 1e-12)
 
 
@@ -364,7 +363,8 @@ class CollaborationSim:
             tracking = float(np.sqrt(np.mean(err ** 2))) if err.size else float("nan")
         fraction = lead = float("nan")
         if math.isfinite(outcome.plan_start):
-            tp, share = path_progress(demo, self.workspace, self.library.config.resample_tolerance)
+            tp, share = path_progress(demo, self.workspace, self.library.config.resample_tolerance,
+                                      adapt_to_noise=self.library.config.adapt_to_noise)
             t_commit = outcome.plan_start - outcome.start_time
             fraction = float(np.interp(t_commit, tp, share))
             t_done = float(tp[np.searchsorted(share, MOTION_DONE)])

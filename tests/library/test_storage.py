@@ -79,6 +79,21 @@ def _rewrite(src, dst, **changes):
     np.savez(dst, **arrays)
 
 
+def test_a_file_written_before_adapt_to_noise_walks_plainly_and_a_new_one_keeps_it(lib, tmp_path):
+    """The key is optional: a schema-3 file without it loads with the plain walk it was learned with."""
+    assert lib.config.adapt_to_noise is True
+    new = tmp_path / "new.npz"
+    lib.save(new)
+    assert SkillLibrary.load(new).config.adapt_to_noise is True
+    with np.load(new, allow_pickle=False) as z:
+        meta = json.loads(str(z["metadata"]))
+    del meta["config"]["adapt_to_noise"]
+    _rewrite(new, tmp_path / "before.npz", meta={"config": meta["config"]})
+    old = SkillLibrary.load(tmp_path / "before.npz")
+    assert old.config.adapt_to_noise is False
+    assert [c.id for c in old.components] == [c.id for c in lib.components]
+
+
 def test_bad_files_give_clear_errors(lib, tmp_path):
     good = tmp_path / "good.npz"
     lib.save(good)
@@ -129,6 +144,7 @@ def _dense_file(lib, path, version):
     st = lib.state()
     cfg = lib.config.dict()
     cfg.update(sigma_init_human=0.5, sigma_init_robot=0.1, gating_floor=1.0, fast_forgetting=True)
+    cfg.pop("adapt_to_noise")  # newer than schema 3
     if version < 2:
         cfg.pop("resample_tolerance")
     comps = lib.components
@@ -147,6 +163,7 @@ def test_schema_1_and_2_files_load_with_their_representation_and_the_same_answer
         _dense_file(lib, p, version)
         old = SkillLibrary.load(p)
         assert old.config.resample_tolerance == (0.0 if version == 1 else lib.config.resample_tolerance)
+        assert old.config.adapt_to_noise is False
         assert [c.id for c in old.components] == [c.id for c in lib.components]
         for a, b in zip(old.components, lib.components):
             np.testing.assert_allclose(a.mean, b.mean)
