@@ -88,9 +88,11 @@ class LibraryConfig:
     #: A motion whose tracker noise exceeds 0.4 of ``resample_tolerance`` (a camera skeleton
     #: tracker: 5-20 mm) is smoothed over at most 2 samples and walked with a tolerance that
     #: grows with the noise left (``promp.preprocessing.vertex_path``); below that share
-    #: nothing changes (every data set we have). Without it 5-20 mm of noise on the
-    #: buetepage interactions made 3-16 % wrong answers; with it none (RESULTS.md, "Tracker
-    #: noise"). A deviation from the paper; false: the plain walk.
+    #: nothing changes (every data set we have). On the buetepage test split with 5-20 mm of
+    #: added noise it takes wrong answers from 5.6-15 % to 0-1.7 % (the 1.7 % is there without
+    #: noise too); on LASA letters with 1-4 % of their size as noise it helps one half of the
+    #: shapes and hurts the other (RESULTS.md, "Tracker noise"). A deviation from the paper;
+    #: false: the plain walk.
     adapt_to_noise: bool = True
     #: Default workspace for human data (None: data is already normalized);
     #: a per-call ``workspace`` argument overrides it (one per subject).

@@ -1,0 +1,108 @@
+"""How the library copes with tracker noise, with and without ``LibraryConfig.adapt_to_noise``.
+
+Not a speed benchmark: the experiment behind RESULTS.md's "Tracker noise", kept so that it can
+be re-run. White noise (per axis, metres for buetepage, millimetres for LASA) is added to every
+taught and recognized motion; ``--every 3`` keeps every third sample (100 Hz -> 33 Hz).
+
+* ``buetepage``: ../shared/data/buetepage_hr.npz (or ``DRAKE_SKILLS_SHARED``), wrist columns.
+  ``--split test``: the 32 training interactions taught in ``--orders`` random orders, the 9 test
+  interactions recognized. ``--split dev`` (how the rule was chosen): per task 6 training
+  interactions taught and the other 2 recognized, 3 draws x ``--orders`` orders.
+* ``lasa``: 15 shapes in one library (``--half a`` or ``b``: every other shape of the 30), 4
+  demonstrations of each taught and 3 recognized, ``--orders`` orders (``evaluation.scale``).
+
+Examples (about 1 min each on the shared 2-core machine)::
+
+    .venv/bin/python benchmarks/tracker_noise.py buetepage --split test --orders 20 --noise 0,0.005,0.01
+    .venv/bin/python benchmarks/tracker_noise.py buetepage --split test --noise 0.005,0.01,0.02 --every 3
+    .venv/bin/python benchmarks/tracker_noise.py lasa --half a --noise 1,2,4
+"""
+from __future__ import annotations
+
+import argparse
+from dataclasses import replace
+
+import numpy as np
+
+from drake_skills.data.demonstration import Demonstration
+from drake_skills.library.config import LibraryConfig
+
+
+def _noisy(d: Demonstration, sigma: float, every: int, rng) -> Demonstration:
+    h = d.human[::every]
+    return Demonstration(t=d.t[::every], human=h + rng.normal(0.0, sigma, h.shape), robot=None if d.robot is None else d.robot[::every],
+                         task=d.task, name=d.name)
+
+
+def buetepage(sigma: float, every: int, split: str, orders: int, config: LibraryConfig):
+    from drake_skills.data.interaction import load_interactions
+    from drake_skills.evaluation.interaction import default_data_path, workspace_of
+    from drake_skills.evaluation.labeled import LabeledLibrary
+
+    inter = load_interactions(default_data_path(), rate_hz=100.0)
+    rng = np.random.default_rng(7)
+    train = [_noisy(d, sigma, every, rng) for d in inter.train]
+    if split == "test":
+        cases = [(train, [_noisy(d, sigma, every, rng) for d in inter.test])]
+    else:
+        cases, tasks = [], sorted({d.task for d in train})
+        for draw in range(3):
+            r = np.random.default_rng(100 + draw)
+            tr, te = [], []
+            for t in tasks:
+                idx = [i for i, d in enumerate(train) if d.task == t]
+                r.shuffle(idx)
+                tr += [train[i] for i in idx[:6]]
+                te += [train[i] for i in idx[6:]]
+            cases.append((tr, te))
+    rows = []
+    for tr, te in cases:
+        ws = workspace_of(tr)
+        for o in range(orders):
+            lab = LabeledLibrary(replace(config, workspace=ws))
+            for j in np.random.default_rng(o).permutation(len(tr)):
+                lab.teach(tr[j])
+            out = [lab.library.recognize(d.human, observed_fraction=1.0) for d in te]
+            right = sum(r.status == "skill" and lab.label_of(r.component) == d.task for r, d in zip(out, te))
+            wrong = sum(r.status == "skill" and lab.label_of(r.component) != d.task for r, d in zip(out, te))
+            rows.append((lab.library.n_components, right / len(te), wrong / len(te)))
+    return np.mean(rows, axis=0)
+
+
+def lasa(sigma: float, half: str, orders: int, config: LibraryConfig):
+    from drake_skills.data.lasa import load_lasa
+    from drake_skills.evaluation.scale import LASA_SHAPES, LasaContext, ScaleSettings, lasa_trial
+
+    shapes = tuple(LASA_SHAPES[0 if half == "a" else 1::2])
+    rng = np.random.default_rng(3)
+    demos = tuple(_noisy(d, sigma, 1, rng) for d in load_lasa(shapes))
+    ctx = LasaContext(demos, ScaleSettings(lasa_orders=orders, lasa_shapes=shapes, library=config))
+    trials = [lasa_trial(ctx, i) for i in range(orders)]
+    counts = np.array([t.counts for t in trials], float)
+    share = (counts / counts.sum(axis=1, keepdims=True)).mean(axis=0)
+    return np.array([np.mean([t.components for t in trials]), share[0], share[1]])
+
+
+def main(argv=None) -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("data", choices=("buetepage", "lasa"))
+    p.add_argument("--noise", default="0,0.005,0.01", help="comma-separated noise levels (buetepage: m, lasa: mm)")
+    p.add_argument("--every", type=int, default=1, help="keep every n-th sample (buetepage)")
+    p.add_argument("--split", choices=("test", "dev"), default="test", help="buetepage: test split or dev split")
+    p.add_argument("--half", choices=("a", "b"), default="b", help="lasa: which half of the 30 shapes")
+    p.add_argument("--orders", type=int, default=3)
+    a = p.parse_args(argv)
+    print("| noise | plain walk: components / correct / wrong | adapt_to_noise |")
+    print("|---|---|---|")
+    for sigma in (float(x) for x in a.noise.split(",")):
+        cells = []
+        for adapt in (False, True):
+            cfg = LibraryConfig(adapt_to_noise=adapt)
+            r = (buetepage(sigma, a.every, a.split, a.orders, cfg) if a.data == "buetepage"
+                 else lasa(sigma, a.half, a.orders, cfg))
+            cells.append(f"{r[0]:.1f} / {r[1]:.3f} / {r[2]:.3f}")
+        print(f"| {sigma:g} | {cells[0]} | {cells[1]} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
