@@ -85,14 +85,14 @@ class LibraryConfig:
     #: data, 0.5 mm at 150 Hz), the phase becomes partly time-like and the hold at
     #: the end of a reach takes a fifth of it.
     resample_tolerance: float = 0.1
-    #: A motion whose tracker noise exceeds 0.4 of ``resample_tolerance`` (a camera skeleton
+    #: A motion whose tracker noise exceeds 0.3 of ``resample_tolerance`` (a camera skeleton
     #: tracker: 5-20 mm) is smoothed over at most 2 samples and walked with a tolerance that
     #: grows with the noise left (``promp.preprocessing.vertex_path``); below that share
-    #: nothing changes (every data set we have). On the buetepage test split with 5-20 mm of
-    #: added noise it takes wrong answers from 5.6-15 % to 0-1.7 % (the 1.7 % is there without
-    #: noise too); on LASA letters with 1-4 % of their size as noise it helps one half of the
-    #: shapes and hurts the other (RESULTS.md, "Tracker noise"). A deviation from the paper;
-    #: false: the plain walk.
+    #: nothing changes (every data set we have). On the buetepage test split with 3-20 mm of
+    #: added noise it takes wrong answers from 5-15 % to 0-1.7 % (the 1.7 % is there without
+    #: noise too), at 2 mm it merged two tasks in 3 of 20 orders; on LASA letters it helps up
+    #: to about one tolerance of noise and hurts beyond (RESULTS.md, "Tracker noise"). A
+    #: deviation from the paper; false: the plain walk.
     adapt_to_noise: bool = True
     #: Default workspace for human data (None: data is already normalized);
     #: a per-call ``workspace`` argument overrides it (one per subject).

@@ -23,9 +23,11 @@ __all__ = ["Workspace", "arc_length", "noise_level", "path_vertices", "resample_
            "vertex_indices", "vertex_path"]
 
 #: Tracker noise (per axis, :func:`noise_level`) may reach this share of the arc-length tolerance
-#: before the path adapts to it (``adapt_to_noise``): 1 / 2.5, chosen on the buetepage training
-#: split with 0-20 mm of added noise (RESULTS.md, "Tracker noise").
-NOISE_SHARE = 0.4
+#: before the path adapts to it (``adapt_to_noise``), and the walk keeps the noise it leaves at
+#: this share of its tolerance. Chosen on the buetepage training split with 0-20 mm of added
+#: noise (RESULTS.md, "Tracker noise"): 0.4 let 3 mm through with wrong answers, 0.25 answered
+#: less often right.
+NOISE_SHARE = 0.3
 #: Widest smoothing (Gaussian standard deviation, in samples) that ``adapt_to_noise`` applies:
 #: a few samples average tracker noise, more blur the motion itself (chosen on the buetepage
 #: training split: 3 gave fewer right answers; a cap from the motion's speed per sample was
@@ -97,6 +99,14 @@ def noise_level(y) -> float:
     return math.sqrt(float(np.partition(sq, k)[k])) / (math.sqrt(6.0) * _CHI_Q10[y.shape[1] - 1])
 
 
+def _noise_gain(width: float) -> float:
+    """Standard deviation of white noise after ``gaussian_filter1d(width)``, per unit before (the kernel's norm)."""
+    radius = int(4.0 * width + 0.5)                 # scipy's truncation at 4 standard deviations
+    impulse = np.zeros(2 * radius + 1)
+    impulse[radius] = 1.0
+    return float(np.linalg.norm(gaussian_filter1d(impulse, width, mode="constant")))
+
+
 def _denoised(y: np.ndarray, tol: float) -> tuple[np.ndarray, float]:
     """The samples and the tolerance the path walk uses when it adapts to the tracker's noise.
 
@@ -109,9 +119,8 @@ def _denoised(y: np.ndarray, tol: float) -> tuple[np.ndarray, float]:
     if not sigma > NOISE_SHARE * tol:
         return y, tol
     width = min(MAX_SMOOTHING, (sigma / (NOISE_SHARE * tol)) ** 2 / (2.0 * math.sqrt(math.pi)))
-    if width >= 0.5:
-        y = gaussian_filter1d(y, width, axis=0, mode="nearest")
-        sigma = sigma / math.sqrt(2.0 * math.sqrt(math.pi) * width)
+    y = gaussian_filter1d(y, width, axis=0, mode="nearest")
+    sigma *= _noise_gain(width)
     return y, max(tol, sigma / NOISE_SHARE)
 
 

@@ -11,12 +11,13 @@ recognized component. Tolerances, per order:
   assumed here so that the rates are the issue's) and played 2x slower (interpolated at the
   same rate, twice the samples): identical decisions, component count within 1 (measured over
   5 orders: equal in 3 of 5 at 30 Hz and in 4 of 5 at half speed, never off by more than 1);
-* 2 mm of extra tracker noise: NOT invariant, which the goal asks for. Measured over 5 orders:
-  the component count moves from 6-8 to 4-12, the path length grows 14 % (78.0 to 89.2
-  normalized units for the first interaction) and the learned within-skill scale widens, so
-  the far rocket test interaction (d^2 ~150 against a threshold of 47) comes within reach
-  (d^2 22-34) and is recognized. What holds, and is asserted: no decision becomes wrong and
-  every interaction recognized without the noise keeps its decision.
+* 2 mm of extra tracker noise: NOT invariant, which the goal asks for. Measured over 5 orders
+  (with ``adapt_to_noise``, which acts from 0.3 tolerances, about 2 mm here): the component
+  count moves from 6-8 to 7-11 and the far rocket test interaction (d^2 ~150 against a
+  threshold of 47) is recognized in every order (before the adaptation: 4-12 components, the
+  path 14 % longer). What holds, and is asserted: no decision becomes wrong and every
+  interaction recognized without the noise keeps its decision. (At 3 mm, measured, not
+  asserted: 5-7 components and every decision as without noise.)
 * 10 mm of camera-like noise: no wrong answer with the default ``adapt_to_noise``, and at
   least one without it (the test names the measured counts).
 """
@@ -123,7 +124,7 @@ def test_camera_noise_of_10mm_gives_no_wrong_answer_because_the_walk_adapts_to_i
     becomes time-like and the library answers wrong (measured: 2 of 9 wrong in 1 of the 3 orders,
     components 14, 9, 5); with ``adapt_to_noise`` (the default) none wrong in any order (8 of 9
     right in each, the rocket 037 unknown as without noise) and at most 10 components (measured
-    9, 7, 7). The noise is drawn once, so both walks see the same samples."""
+    5, 8, 5). The noise is drawn once, so both walks see the same samples."""
     rng = np.random.default_rng(7)
     noise = {d.name: rng.normal(0.0, 0.010, d.human.shape) for d in interactions.train + interactions.test}
 

@@ -41,9 +41,10 @@ def test_below_the_share_the_walk_is_exactly_the_plain_one():
 def test_noise_twice_the_tolerance_no_longer_makes_the_path_or_the_hold_long():
     """Noise of 2 tolerances on a helix (true length 19.1) followed by a hold of 300 samples.
 
-    The plain walk counts nearly every sample: 359 units, 136 of them in the hold. Adapted
-    (smoothed over 2 samples, tolerance 2.5x the noise left) it measures 23.0 at the end of
-    the motion and the hold adds 5.2: asserted within 1.3x and 0.35x of the true length.
+    The plain walk counts nearly every sample: 217 units by the end of the motion, 140 more in
+    the hold. Adapted (smoothed over 2 samples, tolerance 1 / NOISE_SHARE times the noise left)
+    it measures 22.7 at the end of the motion and the hold adds 3.3: asserted within 1.3x and
+    0.35x of the true length.
     """
     y = _helix()
     true_length = arc_length(y, TOL)[1][-1]
