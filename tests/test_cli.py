@@ -131,6 +131,9 @@ def test_learn_writes_the_library_its_task_labels_and_a_summary_into_the_out_dir
     assert summary["n_demos"] == 3 * len(TASKS) and summary["n_components"] == lib.n_components == len(TASKS)
     assert sorted(c["task"] for c in summary["components"]) == sorted(TASKS)
     assert summary["without_workspace"] == 0 and lib.trained_with_workspace is True
+    # motion capture (0.5 mm): noise at 0.04-0.05 of the tolerance (RESULTS.md, "Tracker noise"), nothing adapted
+    noise = summary["tracker_noise"]
+    assert 0.01 < noise["median"] <= noise["max"] < 0.1 and noise["adapted"] == 0
     assert summary["skipped"] == [f"skipped '{dataset / 'train' / 'subject1' / 'calibration.npz'}': a calibration "
                                   f"file (it gives the subject's workspace)"]
 
@@ -218,6 +221,27 @@ def test_recognize_without_the_workspace_warns_and_notes_it(dataset, learned, tm
                  str(dataset / "held" / "calibration.npz"), "--out", str(tmp_path / "rec")]) == 0
     rec = json.loads((tmp_path / "rec" / "recognition.json").read_text())
     assert rec["files"][0]["task"] == "tomato" and rec["without_workspace"] == []
+
+
+def test_learn_notes_demonstrations_whose_tracker_noise_makes_the_walk_adapt(dataset, tmp_path, capsys):
+    """10 mm of white noise on subject 1 (its box spans 0.8-1.8 m per axis, 10 normalized units): about 0.9
+    of the arc-length tolerance (measured median 0.89), so every demonstration is counted in the note."""
+    src = dataset / "train" / "subject1"
+    noisy = tmp_path / "noisy"
+    noisy.mkdir()
+    shutil.copy(src / "calibration.npz", noisy / "calibration.npz")
+    rng = np.random.default_rng(0)
+    files = sorted(f for f in src.glob("*.npz") if f.name != "calibration.npz")
+    for f in files:
+        with np.load(f) as z:
+            arrays = {k: z[k] for k in z.files}
+        arrays["human"] = arrays["human"] + rng.normal(0.0, 0.01, arrays["human"].shape)
+        np.savez(noisy / f.name, **arrays)
+    out = tmp_path / "out"
+    assert main(["learn", str(noisy), "--out", str(out)]) == 0
+    noise = json.loads((out / "learn.json").read_text())["tracker_noise"]
+    assert noise["adapted"] == len(files) and 0.6 < noise["median"] < 1.2
+    assert f"note: {len(files)} of {len(files)} demonstration(s) have tracker noise above 0.3" in capsys.readouterr().out
 
 
 def test_learn_on_a_generated_csv_folder_reads_each_demonstration_once(tmp_path, capsys):
