@@ -70,7 +70,8 @@ def main() -> int:
                     taught.add(d.task)
                 elif label.get(comp) == d.task:
                     tot["right"] += 1
-                    shares.append(commit_share(d, ws, lib.config.resample_tolerance, g.commit_time))
+                    shares.append(commit_share(d, ws, lib.config.resample_tolerance, g.commit_time,
+                                               adapt_to_noise=lib.config.adapt_to_noise))
                 else:
                     tot["wrong"] += 1
                     print(f"wrong: subject {subj} seed {seed} trial {i + 1}: {d.task} executed as {label.get(comp)} "

@@ -46,7 +46,7 @@ from drake_skills.data.workspace import Workspace
 from drake_skills.evaluation.common import EvalReport, Table, run_trials, trial_rng
 from drake_skills.evaluation.labeled import CORRECT, UNKNOWN, WRONG, LabeledLibrary, outcome_fractions
 from drake_skills.library.incremental import LibraryConfig
-from drake_skills.promp.preprocessing import resample_in_time, vertex_path
+from drake_skills.promp.preprocessing import prefix_samples, resample_in_time
 
 STREAM_INTERACTION = 7
 #: Recognition from the wrist alone in chenlx92/ipromps (Interaction ProMPs with phase
@@ -178,20 +178,17 @@ def workspace_of(demos) -> Workspace:
 
 
 def prefix_end(human: np.ndarray, workspace: Workspace, fraction: float, tolerance: float, *,
-               adapt_to_noise: bool = False) -> int:
+               adapt_to_noise: bool = True) -> int:
     """How many samples of ``human`` cover ``fraction`` of its path length, as the library measures it.
 
     The path is the library's: normalized by ``workspace`` (Eq. 14) and counted only
-    between vertices more than ``tolerance`` apart
-    (:func:`~drake_skills.promp.preprocessing.vertex_path`, with the library's
-    ``adapt_to_noise``). Returns the number of
-    leading samples up to and including the first vertex at or past ``fraction`` of
-    the whole path (at least 2).
+    between vertices more than ``tolerance`` apart, adapted to the tracker's noise as the
+    library's ``adapt_to_noise`` says (the default is the library's default)
+    (:func:`~drake_skills.promp.preprocessing.prefix_samples`: the leading samples up to
+    and including the first vertex at or past ``fraction`` of the whole path; for a noisy
+    motion, the first prefix whose own walk reaches it). At least 2.
     """
-    y = workspace.normalize(human)
-    idx, _, s = vertex_path(y, tolerance, adapt_to_noise=adapt_to_noise)
-    k = int(np.searchsorted(s, fraction * s[-1] * (1 - 1e-12)))
-    return max(2, int(idx[min(k, len(idx) - 1)]) + 1)
+    return prefix_samples(workspace.normalize(human), fraction, tolerance, adapt_to_noise=adapt_to_noise)
 
 
 @dataclass(frozen=True, eq=False)
@@ -259,7 +256,7 @@ def replay_commits(library, demo: Demonstration, workspace: Workspace, rule=None
 
 
 def commit_share(demo: Demonstration, workspace: Workspace, tolerance: float, commit_time: float, *,
-                 adapt_to_noise: bool = False) -> float:
+                 adapt_to_noise: bool = True) -> float:
     """Share of the person's whole path done at ``commit_time`` (s from the start), as the demo reports it.
 
     :func:`~drake_skills.sim.demo.path_progress` (the library's arc length) at that time;

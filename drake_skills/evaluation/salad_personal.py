@@ -30,7 +30,7 @@ from drake_skills.evaluation.labeled import (CORRECT, UNKNOWN, WRONG, LabeledLib
                                              outcome_fractions)
 from drake_skills.evaluation.salad_data import SaladContext, SaladSettings
 from drake_skills.library.incremental import SkillLibrary
-from drake_skills.promp.preprocessing import resample_in_time, vertex_path
+from drake_skills.promp.preprocessing import prefix_samples, resample_in_time, vertex_path, walk_is_causal
 from drake_skills.sim.models import FlangeKinematics
 
 #: Random stream of the splits (second seed word).
@@ -88,7 +88,7 @@ class PersonalContext:
 
 
 def observed_prefix(human: np.ndarray, fraction: float, workspace=None, tolerance: float = 0.0, *,
-                    adapt_to_noise: bool = False) -> np.ndarray:
+                    adapt_to_noise: bool = True) -> np.ndarray:
     """The first ``fraction`` of a motion's path length (measured in the normalized workspace).
 
     The cut falls between two samples; the last row is interpolated there, so the
@@ -106,8 +106,10 @@ def observed_prefix(human: np.ndarray, fraction: float, workspace=None, toleranc
         (:func:`~drake_skills.promp.preprocessing.path_vertices`), so the prefix
         is ``fraction`` of the length the library sees.
     adapt_to_noise : bool
-        The library's ``adapt_to_noise``. When it smooths a noisy motion the cut is
-        placed on the smoothed path's length and interpolated between the raw samples.
+        The library's ``adapt_to_noise`` (default: the library's default). When the walk
+        adapts to a noisy motion the prefix is its first samples whose own walk reaches
+        ``fraction`` of the whole's (:func:`~drake_skills.promp.preprocessing.prefix_samples`),
+        not interpolated.
 
     Returns
     -------
@@ -120,7 +122,9 @@ def observed_prefix(human: np.ndarray, fraction: float, workspace=None, toleranc
     if f == 1.0:
         return human
     y = workspace.normalize(human, subtract_start=False) if workspace is not None else human
-    idx, _, s = vertex_path(y, tolerance, adapt_to_noise=adapt_to_noise)
+    if not walk_is_causal(y, tolerance, adapt_to_noise=adapt_to_noise):
+        return human[:prefix_samples(y, f, tolerance, adapt_to_noise=True)]
+    idx, _, s = vertex_path(y, tolerance)
     human = human[idx]
     if human.shape[0] < 2:
         raise ValueError("the motion does not move beyond the tolerance: no prefix to observe")

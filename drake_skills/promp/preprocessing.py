@@ -19,8 +19,8 @@ from scipy.ndimage import gaussian_filter1d
 from drake_skills._checks import as_finite_array, check_increasing
 from drake_skills.data.workspace import Workspace
 
-__all__ = ["Workspace", "arc_length", "noise_level", "path_vertices", "resample_by_arc_length", "resample_in_time",
-           "vertex_indices", "vertex_path"]
+__all__ = ["Workspace", "arc_length", "noise_level", "path_vertices", "prefix_samples", "resample_by_arc_length",
+           "resample_in_time", "vertex_indices", "vertex_path", "walk_is_causal"]
 
 #: Tracker noise (per axis, :func:`noise_level`) may reach this share of the arc-length tolerance
 #: before the path adapts to it (``adapt_to_noise``), and the walk keeps the noise it leaves at
@@ -53,9 +53,10 @@ def path_vertices(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False) ->
     the last one whenever it moved at all. Sensor noise while the hand stands
     still (or moves slowly) then adds no path length: with noise of 0.5 mm at
     150 Hz, the raw arc length of a simulated salad reach is 20-40 % longer
-    than its path and grows with every sample of the hold at the end. The walk is causal, so a
-    prefix of a motion keeps a prefix of the vertices, and an observed prefix is
-    parametrized exactly as the start of the whole motion.
+    than its path and grows with every sample of the hold at the end. The plain walk is causal,
+    so a prefix of a motion keeps a prefix of the vertices, and an observed prefix is
+    parametrized exactly as the start of the whole motion; the walk adapted to noise
+    (``adapt_to_noise``, :func:`vertex_path`) is not, see :func:`prefix_samples`.
 
     Parameters
     ----------
@@ -81,22 +82,42 @@ def noise_level(y) -> float:
     second difference is sigma sqrt(6) times a chi-distributed norm, and a smooth motion
     sampled densely adds little to it at its slowest tenth (rests, constant speed). The
     lowest decile read as the noise is therefore an upper bound that is tight for noise
-    above the motion's own curvature per sample, and 0 for a motion without noise.
-    Returns 0 for fewer than 5 moving samples.
+    above the motion's own curvature per sample, and 0 for a motion without noise. Noise the
+    tracker smoothed or interpolated in time has small second differences and reads low
+    (RESULTS.md, "Tracker noise"). Returns 0 for fewer than 5 moving samples.
+
+    Parameters
+    ----------
+    y : array, shape (T, D)
+        Finite.
     """
-    y = np.asarray(y, dtype=float)
-    if y.ndim != 2 or not 1 <= y.shape[1] <= len(_CHI_Q10):
+    y = as_finite_array(y, "trajectory", ndim=2, min_rows=1)
+    return _frame_noise(_frames(y)[0])
+
+
+def _frames(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The samples that moved (a held frame counts once) and, per sample, the index of its frame."""
+    moved = np.concatenate([[True], np.any(y[1:] != y[:-1], axis=1)])
+    return (y, np.arange(len(y))) if moved.all() else (y[moved], np.cumsum(moved) - 1)
+
+
+def _chi_quantile(dim: int) -> float:
+    if dim <= len(_CHI_Q10):
+        return _CHI_Q10[dim - 1]
+    from scipy.stats import chi  # noqa: PLC0415 (slow to import; only for more than 20 dimensions)
+
+    return float(chi.ppf(_NOISE_QUANTILE, dim))
+
+
+def _frame_noise(frames: np.ndarray) -> float:
+    if len(frames) < 5:
         return 0.0
-    d = np.diff(y, axis=0)
-    moved = np.any(d != 0, axis=1)
-    if not moved.all():
-        d = np.diff(y[np.concatenate([[True], moved])], axis=0)
-    if len(d) < 4:
-        return 0.0
+    d = np.diff(frames, axis=0)
     d2 = d[1:] - d[:-1]
-    sq = np.einsum("ij,ij->i", d2, d2)
+    with np.errstate(over="ignore", invalid="ignore"):   # huge values: an infinite level, refused by the walk's caller
+        sq = np.einsum("ij,ij->i", d2, d2)
     k = int(_NOISE_QUANTILE * (len(sq) - 1))        # the lower order statistic at the quantile
-    return math.sqrt(float(np.partition(sq, k)[k])) / (math.sqrt(6.0) * _CHI_Q10[y.shape[1] - 1])
+    return math.sqrt(float(np.partition(sq, k)[k])) / (math.sqrt(6.0) * _chi_quantile(frames.shape[1]))
 
 
 def _noise_gain(width: float) -> float:
@@ -112,16 +133,69 @@ def _denoised(y: np.ndarray, tol: float) -> tuple[np.ndarray, float]:
 
     Unchanged while the noise is at most ``NOISE_SHARE`` of the tolerance (every data set
     we have: its clean motions lie at 0-0.1 of it). Above, a Gaussian of at most
-    ``MAX_SMOOTHING`` samples averages the noise towards that share, and the tolerance
-    grows to 1 / NOISE_SHARE times what is left, so that a hold adds no path length.
+    ``MAX_SMOOTHING`` frames (a held frame counts once) averages the noise towards that
+    share, and the tolerance grows to 1 / NOISE_SHARE times what is left, so that a hold
+    adds a ninth to a fiftieth of the path it adds to the plain walk (not none: two 3-D
+    samples of the noise left lie that far apart about once in ten;
+    ``tests/promp/test_noise_adaptation.py``).
     """
-    sigma = noise_level(y)
+    frames, frame_of = _frames(y)
+    sigma = _frame_noise(frames)
     if not sigma > NOISE_SHARE * tol:
         return y, tol
-    width = min(MAX_SMOOTHING, (sigma / (NOISE_SHARE * tol)) ** 2 / (2.0 * math.sqrt(math.pi)))
-    y = gaussian_filter1d(y, width, axis=0, mode="nearest")
-    sigma *= _noise_gain(width)
-    return y, max(tol, sigma / NOISE_SHARE)
+    ratio = sigma / (NOISE_SHARE * tol)
+    width = MAX_SMOOTHING if ratio > 10.0 else min(MAX_SMOOTHING, ratio ** 2 / (2.0 * math.sqrt(math.pi)))
+    with np.errstate(over="ignore", invalid="ignore"):
+        smooth = gaussian_filter1d(frames, width, axis=0, mode="nearest")
+    return smooth[frame_of], max(tol, sigma * _noise_gain(width) / NOISE_SHARE)
+
+
+def prefix_samples(y, fraction: float, tolerance: float = 0.0, *, adapt_to_noise: bool = False) -> int:
+    """How many leading samples of ``y`` the walk measures as ``fraction`` of the whole path.
+
+    The walk of the plain path is causal (a prefix keeps a prefix of the vertices), so this
+    is the sample of the first vertex at or past the fraction, plus one. An adapted walk
+    (:func:`vertex_path`) smooths and estimates the noise over the samples it is given, so a
+    prefix is not walked as the start of the whole; then the count is searched (bisection)
+    for the first prefix whose own walk reaches the fraction of the whole's: what the
+    library sees when it is given those samples. At least 2.
+    """
+    y = as_finite_array(y, "trajectory", ndim=2, min_rows=2)
+    f = float(fraction)
+    idx, _, s = vertex_path(y, tolerance, adapt_to_noise=adapt_to_noise)
+    target = f * s[-1] * (1 - 1e-12)
+    if walk_is_causal(y, tolerance, adapt_to_noise=adapt_to_noise):
+        k = int(np.searchsorted(s, target))
+        return max(2, int(idx[min(k, len(idx) - 1)]) + 1)
+    lo, hi = 2, len(y)                                # the walk of y[:hi] reaches the target
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if vertex_path(y[:mid], tolerance, adapt_to_noise=True)[2][-1] >= target:
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
+
+
+def walk_is_causal(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False) -> bool:
+    """Is the walk of ``y`` the plain one, so that its prefixes are walked as its start?
+
+    True without ``adapt_to_noise`` or a tolerance; otherwise when the walk adapts to
+    neither the whole motion nor its prefixes of 5, 10, 20, ... frames (a prefix can read
+    noisier than the whole: its slowest tenth is another tenth; the doubling lengths are a
+    check, not a proof, for the lengths between them).
+    """
+    tol = float(tolerance)
+    if not adapt_to_noise or not tol > 0:
+        return True
+    frames = _frames(as_finite_array(y, "trajectory", ndim=2, min_rows=2))[0]
+    whole = _frame_noise(frames)
+    n = 5
+    while n < len(frames):
+        if _frame_noise(frames[:n]) > NOISE_SHARE * tol:
+            return False
+        n *= 2
+    return not whole > NOISE_SHARE * tol
 
 
 def vertex_path(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False

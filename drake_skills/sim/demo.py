@@ -189,8 +189,12 @@ def _jsonable(x):
 
 
 def path_progress(demo: Demonstration, workspace: Workspace, tolerance: float, *,
-                  adapt_to_noise: bool = False) -> tuple[np.ndarray, np.ndarray]:
+                  adapt_to_noise: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """The demonstration's share of its path done over time, as the library measures paths.
+
+    Along the walk of the whole motion (``adapt_to_noise``: the library's, default its default).
+    For a noisy motion the library's own walk of a prefix can differ from the start of this
+    one by a few percent of the path (``promp.preprocessing.prefix_samples``).
 
     Returns
     -------

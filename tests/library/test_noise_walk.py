@@ -1,0 +1,48 @@
+"""The library walks a human motion with its own ``adapt_to_noise``, in learning and in recognition."""
+import numpy as np
+import pytest
+
+from drake_skills import LibraryConfig, SkillLibrary
+from drake_skills.data.demonstration import Demonstration
+from drake_skills.promp.preprocessing import vertex_path
+
+from synthetic import synthetic_demo
+
+
+def _noisy(task, rng, sigma):
+    d = synthetic_demo(task, rng)
+    return Demonstration(t=d.t, human=d.human + rng.normal(0, sigma, d.human.shape), robot=d.robot, task=d.task,
+                         name=d.name)
+
+
+@pytest.mark.parametrize("adapt", [True, False])
+def test_learning_and_recognition_walk_the_motion_as_the_config_says(adapt):
+    """Noise of 3 tolerances (0.3 normalized units) on a synthetic reach: the adapted and the plain walk differ
+    by more than 2x in length, and the library's path (recognition) and its component's path length (learning,
+    one demonstration) are the walk of its own setting to 1e-12."""
+    rng = np.random.default_rng(0)
+    cfg = LibraryConfig(adapt_to_noise=adapt)
+    d = _noisy(0, rng, 3 * cfg.resample_tolerance)
+    y = d.human - d.human[0]
+    lengths = {a: vertex_path(y, cfg.resample_tolerance, adapt_to_noise=a)[2][-1] for a in (True, False)}
+    assert lengths[False] > 2 * lengths[True]
+    lib = SkillLibrary(cfg)
+    assert lib.path_length(d.human) == pytest.approx(lengths[adapt], rel=1e-12)
+    lib.partial_fit(d)
+    assert lib.components[0].path_length == pytest.approx(lengths[adapt], rel=1e-12)
+
+
+def test_positions_too_large_for_the_noise_check_are_refused_clearly_and_leave_the_library_as_it_was():
+    rng = np.random.default_rng(1)
+    lib = SkillLibrary(LibraryConfig())
+    lib.partial_fit(synthetic_demo(0, rng))
+    before = lib.state()
+    d = _noisy(1, rng, 0.3)
+    huge = Demonstration(t=d.t, human=1e155 * d.human, robot=d.robot, task=d.task, name="huge")
+    with pytest.raises(ValueError, match="too large"):
+        lib.partial_fit(huge)
+    with pytest.raises(ValueError, match="too large"):
+        lib.recognize(huge.human)
+    after = lib.state()
+    assert after.n_seen == before.n_seen and len(after.components) == len(before.components)
+    np.testing.assert_array_equal(after.components[0].cluster.mean, before.components[0].cluster.mean)
