@@ -138,3 +138,38 @@ def test_a_prefix_of_a_noisy_motion_is_cut_where_its_own_walk_reaches_the_fracti
     for f in (0.1, 0.5, 0.9):
         k = int(np.searchsorted(s, f * s[-1] * (1 - 1e-12)))
         assert prefix_samples(clean, f, TOL, adapt_to_noise=True) == idx[k] + 1
+
+
+def test_prefix_helpers_refuse_what_is_not_a_trajectory_and_keep_their_edges():
+    from drake_skills.promp.preprocessing import prefix_samples, walk_is_causal
+
+    for bad in (np.full((50, 3), np.nan), np.arange(50.0), np.zeros((1, 3))):
+        for call in (lambda y: prefix_samples(y, 0.5, TOL, adapt_to_noise=True),
+                     lambda y: walk_is_causal(y, TOL, adapt_to_noise=True)):
+            with pytest.raises(ValueError, match="trajectory"):
+                call(bad)
+    rng = np.random.default_rng(8)
+    noisy = _helix() + rng.normal(0, 1.5 * TOL, (500, 3))
+    clean = _helix()
+    # the shortest prefix: 2 samples of the searched one, up to the first vertex of the plain one; the whole
+    # motion: all samples with either walk
+    assert prefix_samples(noisy, 1e-9, TOL, adapt_to_noise=True) == 2
+    assert prefix_samples(clean, 1e-9, TOL, adapt_to_noise=True) == vertex_path(clean, TOL)[0][1] + 1 > 2
+    for y in (noisy, clean):
+        assert prefix_samples(y, 1.0, TOL, adapt_to_noise=True) == len(y)
+    # tolerance 0 is the paper's raw walk, which never adapts, so it is causal whatever the noise
+    assert walk_is_causal(noisy, 0.0, adapt_to_noise=True)
+
+
+def test_a_motion_whose_beginning_alone_is_noisy_is_not_walked_causally():
+    """30 noisy samples at rest (noise 2 tolerances), then 970 clean ones of a long slow motion: the whole
+    motion's lowest decile is the clean part's (far below the share), but its prefixes of 5-20 frames read
+    the noise, and the library walks such a prefix adapted, so the walk is not causal."""
+    from drake_skills.promp.preprocessing import walk_is_causal
+
+    rng = np.random.default_rng(9)
+    start = rng.normal(0, 2 * TOL, (30, 3))
+    y = np.vstack([start, _helix(970)])
+    assert noise_level(y) < NOISE_SHARE * TOL < noise_level(y[:20])
+    assert not walk_is_causal(y, TOL, adapt_to_noise=True)
+    assert walk_is_causal(_helix(1000), TOL, adapt_to_noise=True)
