@@ -141,14 +141,14 @@ def _refuse_to_replace(out_file: Path, in_place: bool, force: bool) -> None:
 def _noise_report(config, demos, workspaces) -> dict:
     """Each demonstration's white tracker noise as a share of the arc-length tolerance (normalized units).
 
-    ``adapted`` counts those above ``NOISE_SHARE``, whose walk ``adapt_to_noise`` changes
+    ``adapted`` counts those above ``share`` (``NOISE_SHARE``), whose walk ``adapt_to_noise`` changes
     (``promp.preprocessing.vertex_path``). Noise the tracker smoothed in time is not seen.
     """
     from drake_skills.promp.preprocessing import NOISE_SHARE, noise_level
 
     tol = config.resample_tolerance
     if not tol > 0:
-        return {"median": None, "max": None, "adapted": 0}
+        return {"median": None, "max": None, "adapted": 0, "share": NOISE_SHARE}
     shares = []
     for d, (ws, _) in zip(demos, workspaces):
         ws = ws if ws is not None else config.workspace
@@ -156,7 +156,7 @@ def _noise_report(config, demos, workspaces) -> dict:
         shares.append(noise_level(y) / tol)
     shares = np.asarray(shares)
     return {"median": round(float(np.median(shares)), 4), "max": round(float(shares.max()), 4),
-            "adapted": int(np.sum(shares > NOISE_SHARE))}
+            "adapted": int(np.sum(shares > NOISE_SHARE)), "share": NOISE_SHARE}
 
 
 def _learn(args, lib, votes, demos, workspaces, notes, out_file: Path, in_place: bool) -> int:
@@ -185,12 +185,10 @@ def _learn(args, lib, votes, demos, workspaces, notes, out_file: Path, in_place:
         extra = "".join([f", merged {m[1]}->{m[0]}" for m in u.merged] + [f", deleted {k}" for k in u.deleted])
         print(f"[{n:4d}/{len(demos)}] {short_name(d.name, args.demos_dir)}: {what}{extra}  (K={lib.n_components})",
               flush=True)
-    from drake_skills.promp.preprocessing import NOISE_SHARE
-
     noise = _noise_report(lib.config, demos, workspaces)
     if noise["adapted"]:
         print(f"note: {noise['adapted']} of {len(demos)} demonstration(s) have tracker noise above "
-              f"{NOISE_SHARE} of the arc-length tolerance (largest {noise['max']:.2f}): their path was smoothed and "
+              f"{noise['share']} of the arc-length tolerance (largest {noise['max']:.2f}): their path was smoothed and "
               f"walked with a wider tolerance" + ("" if lib.config.adapt_to_noise else
                                                    " would have been, but adapt_to_noise is off"))
     args.out.mkdir(parents=True, exist_ok=True)
