@@ -16,6 +16,7 @@ Examples (about 1 min each on the shared 2-core machine)::
     .venv/bin/python benchmarks/tracker_noise.py buetepage --split test --orders 20 --noise 0,0.005,0.01
     .venv/bin/python benchmarks/tracker_noise.py buetepage --split test --noise 0.005,0.01,0.02 --every 3
     .venv/bin/python benchmarks/tracker_noise.py lasa --half a --noise 1,2,4
+    .venv/bin/python benchmarks/tracker_noise.py buetepage --noise 0,0.005 --glitches 0.01,0.1
 """
 from __future__ import annotations
 
@@ -28,9 +29,19 @@ from drake_skills.data.demonstration import Demonstration
 from drake_skills.library.config import LibraryConfig
 
 
+#: Glitches: (share of the frames that start one, size in the data's units, frames per glitch).
+GLITCHES = (0.0, 0.0, 1)
+
+
 def _noisy(d: Demonstration, sigma: float, every: int, rng) -> Demonstration:
-    h = d.human[::every]
-    return Demonstration(t=d.t[::every], human=h + rng.normal(0.0, sigma, h.shape), robot=None if d.robot is None else d.robot[::every],
+    h = d.human[::every] + rng.normal(0.0, sigma, d.human[::every].shape)
+    rate, size, run = GLITCHES
+    if rate > 0:
+        h = h.copy()
+        for s in np.flatnonzero(rng.random(len(h) - run - 1) < rate) + 1:
+            v = rng.normal(0.0, 1.0, h.shape[1])
+            h[s:s + run] += size * v / np.linalg.norm(v)
+    return Demonstration(t=d.t[::every], human=h, robot=None if d.robot is None else d.robot[::every],
                          task=d.task, name=d.name)
 
 
@@ -91,9 +102,18 @@ def main(argv=None) -> None:
     p.add_argument("--split", choices=("test", "dev"), default="test", help="buetepage: test split or dev split")
     p.add_argument("--half", choices=("a", "b"), default="b", help="lasa: which half of the 30 shapes")
     p.add_argument("--orders", type=int, default=3, help="random orders of teaching (default 3)")
+    p.add_argument("--glitches", default=None, metavar="RATE,SIZE[,RUN]",
+                   help="also add tracker glitches: a share RATE of the frames starts one, SIZE away (the noise's "
+                        "units) in a random direction for RUN frames (default 1), e.g. 0.01,0.1")
     p.add_argument("--seed", type=int, default=None,
                    help="seed of the noise draw (default: 7 for buetepage, 3 for lasa, as in RESULTS.md)")
     a = p.parse_args(argv)
+    if a.glitches:
+        parts = [float(x) for x in a.glitches.split(",")]
+        if len(parts) not in (2, 3) or not (0 <= parts[0] < 1 and parts[1] >= 0):
+            p.error(f"--glitches RATE,SIZE[,RUN] with 0 <= RATE < 1, got {a.glitches!r}")
+        global GLITCHES
+        GLITCHES = (parts[0], parts[1], int(parts[2]) if len(parts) == 3 else 1)
     print("| noise | plain walk: components / correct / wrong | adapt_to_noise |")
     print("|---|---|---|")
     for sigma in (float(x) for x in a.noise.split(",")):

@@ -20,7 +20,7 @@ from drake_skills._checks import as_finite_array, check_increasing
 from drake_skills.data.workspace import Workspace
 
 __all__ = ["Workspace", "arc_length", "noise_level", "path_vertices", "prefix_samples", "resample_by_arc_length",
-           "resample_in_time", "vertex_indices", "vertex_path", "walk_is_causal"]
+           "resample_in_time", "spike_samples", "vertex_indices", "vertex_path", "walk_is_causal"]
 
 #: Tracker noise (per axis, :func:`noise_level`) may reach this share of the arc-length tolerance
 #: before the path adapts to it (``adapt_to_noise``), and the walk keeps the noise it leaves at
@@ -33,12 +33,28 @@ NOISE_SHARE = 0.3
 #: training split: 3 gave fewer right answers; a cap from the motion's speed per sample was
 #: worse on both that split and LASA).
 MAX_SMOOTHING = 2.0
+#: A tracker's glitch (a joint detected far away for 1-3 frames, then back): a run of at most
+#: ``SPIKE_RUN`` frames leaving the line between the frames before and after it by more than
+#: ``SPIKE_FACTOR`` times the motion's own 0.9-quantile second difference (and ``SPIKE_FLOOR``
+#: tolerances, and ``SPIKE_NOISE`` times the noise), while those two frames lie closer
+#: together than that (out and back, not a step). Chosen so that no sample of any clean data set we have is one (buetepage at 100, 33
+#: and 20 Hz, LASA-30, salad subjects 1-10, synthetic skills), while 10-30 cm glitches on
+#: buetepage are all found (RESULTS.md, "Tracker noise").
+SPIKE_FACTOR = 10.0
+SPIKE_FLOOR = 2.0
+SPIKE_RUN = 3
+#: ... and at least this many times the tracker's white noise per axis (:func:`noise_level`; its
+#: own excursions from the line between two neighbours stay below 6 times it in 99.99 % of
+#: frames), the noise's 0.9-quantile second difference being taken off the motion's.
+SPIKE_NOISE = 12.0
 #: The quantile of the second differences that :func:`noise_level` reads, and the same
 #: quantile of the chi distribution with 1..20 degrees of freedom (norm of a D-dimensional
 #: standard normal), precomputed (scipy.stats.chi.ppf(0.1, D)).
 _NOISE_QUANTILE = 0.1
 _CHI_Q10 = (0.12566, 0.45904, 0.76444, 1.03132, 1.26898, 1.48463, 1.68318, 1.86803, 2.04161, 2.20572,
             2.36173, 2.51074, 2.65358, 2.79097, 2.92348, 3.0516, 3.17572, 3.2962, 3.41334, 3.52741)
+_CHI_Q90 = (1.64485, 2.14597, 2.50028, 2.78916, 3.03914, 3.26261, 3.46656, 3.65535, 3.83193, 3.9984,
+            4.15632, 4.3069, 4.45106, 4.58957, 4.72304, 4.85199, 4.97685, 5.09798, 5.2157, 5.33029)
 
 #: Points closer than this (in the trajectory's units, relative to the path
 #: length) count as standing still and are dropped before resampling.
@@ -101,12 +117,14 @@ def _frames(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (y, np.arange(len(y))) if moved.all() else (y[moved], np.cumsum(moved) - 1)
 
 
-def _chi_quantile(dim: int) -> float:
-    if dim <= len(_CHI_Q10):
-        return _CHI_Q10[dim - 1]
+def _chi_quantile(dim: int, q: float = _NOISE_QUANTILE) -> float:
+    """The ``q`` (0.1 or 0.9) quantile of the norm of a ``dim``-dimensional standard normal."""
+    table = _CHI_Q10 if q == _NOISE_QUANTILE else _CHI_Q90
+    if dim <= len(table):
+        return table[dim - 1]
     from scipy.stats import chi  # noqa: PLC0415 (slow to import; only for more than 20 dimensions)
 
-    return float(chi.ppf(_NOISE_QUANTILE, dim))
+    return float(chi.ppf(q, dim))
 
 
 def _frame_noise(frames: np.ndarray) -> float:
@@ -188,7 +206,10 @@ def walk_is_causal(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False) -
     tol = float(tolerance)
     if not adapt_to_noise or not tol > 0:
         return True
-    frames = _frames(as_finite_array(y, "trajectory", ndim=2, min_rows=2))[0]
+    y = as_finite_array(y, "trajectory", ndim=2, min_rows=2)
+    if spike_samples(y, tol).any():
+        return False
+    frames = _frames(y)[0]
     whole = _frame_noise(frames)
     n = 5
     while n < len(frames):
@@ -198,16 +219,71 @@ def walk_is_causal(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False) -
     return not whole > NOISE_SHARE * tol
 
 
+def spike_samples(y, tolerance: float) -> np.ndarray:
+    """Which samples belong to a tracker's glitch (see ``SPIKE_FACTOR``): a boolean mask, shape (T,).
+
+    Samples a tracker repeats count as one frame. The first and the last frame are never one
+    (a glitch needs a frame on each side), so a prefix that ends in a glitch keeps it until
+    the next frame arrives.
+    """
+    y = as_finite_array(y, "trajectory", ndim=2, min_rows=1)
+    mask = np.zeros(len(y), bool)
+    tol = float(tolerance)
+    frames, frame_of = _frames(y)
+    n = len(frames)
+    if n < 5 or not tol > 0:
+        return mask
+    with np.errstate(over="ignore", invalid="ignore"):
+        d2 = np.linalg.norm(frames[2:] - 2.0 * frames[1:-1] + frames[:-2], axis=1)
+        sigma = _frame_noise(frames)
+        q90 = float(np.quantile(d2, 0.9))
+        noise_q90 = math.sqrt(6.0) * _chi_quantile(frames.shape[1], 0.9) * sigma
+        motion = max(q90 - noise_q90, 0.0)
+        threshold = max(SPIKE_FACTOR * motion, SPIKE_NOISE * sigma, SPIKE_FLOOR * tol)
+        glitch = np.zeros(n, bool)
+        for j in np.flatnonzero(d2 > threshold) + 1:
+            if glitch[j] or glitch[j - 1]:
+                continue
+            for r in range(1, SPIKE_RUN + 1):
+                a, b = j - 1, j + r
+                if b >= n:
+                    break
+                seg = frames[b] - frames[a]
+                length_sq = float(seg @ seg)
+                pts = frames[j:b] - frames[a]
+                u = np.clip(pts @ seg / length_sq, 0.0, 1.0) if length_sq > 0 else np.zeros(r)
+                away = np.linalg.norm(pts - u[:, None] * seg, axis=1)
+                excursion = float(away.max())
+                # every frame of the run is away (not the last frame before it), and the run comes back
+                if away.min() > 0.5 * threshold and excursion > threshold and math.sqrt(length_sq) < excursion:
+                    glitch[j:b] = True
+                    break
+    return glitch[frame_of]
+
+
+def _despiked(y: np.ndarray, tol: float) -> np.ndarray:
+    """``y`` with each glitch (:func:`spike_samples`) replaced by the line between the frames around it."""
+    bad = spike_samples(y, tol)
+    if not bad.any():
+        return y
+    good = np.flatnonzero(~bad)
+    out = y.copy()
+    for d in range(y.shape[1]):
+        out[bad, d] = np.interp(np.flatnonzero(bad), good, y[good, d])
+    return out
+
+
 def vertex_path(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The path walk of :func:`path_vertices` with the indices of its vertices and its arc length.
 
-    With ``adapt_to_noise`` (and a positive ``tolerance``) a motion whose tracker noise
-    (:func:`noise_level`) exceeds ``NOISE_SHARE`` of the tolerance is smoothed over at
-    most ``MAX_SMOOTHING`` samples and walked with a tolerance of 1 / ``NOISE_SHARE``
-    times the noise left, so the vertices are smoothed samples (a deviation from the
-    paper, which resamples the raw positions; RESULTS.md, "Tracker noise"). Below that
-    share the walk is exactly the plain one.
+    With ``adapt_to_noise`` (and a positive ``tolerance``) the tracker's glitches
+    (:func:`spike_samples`) are first replaced by the line between the frames around them,
+    and a motion whose tracker noise (:func:`noise_level`) exceeds ``NOISE_SHARE`` of the
+    tolerance is smoothed over at most ``MAX_SMOOTHING`` samples and walked with a tolerance
+    of 1 / ``NOISE_SHARE`` times the noise left, so the vertices are smoothed samples (a
+    deviation from the paper, which resamples the raw positions; RESULTS.md, "Tracker
+    noise"). Without glitches and below that share the walk is exactly the plain one.
 
     Returns
     -------
@@ -222,7 +298,7 @@ def vertex_path(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False
     if not (np.isfinite(tol) and tol >= 0):
         raise ValueError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
     if adapt_to_noise and tol > 0:
-        y, tol = _denoised(y, tol)
+        y, tol = _denoised(_despiked(y, tol), tol)
     idx = _walk(y, tol)
     v = y[idx]
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(v, axis=0), axis=1))])

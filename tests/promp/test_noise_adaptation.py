@@ -173,3 +173,49 @@ def test_a_motion_whose_beginning_alone_is_noisy_is_not_walked_causally():
     assert noise_level(y) < NOISE_SHARE * TOL < noise_level(y[:20])
     assert not walk_is_causal(y, TOL, adapt_to_noise=True)
     assert walk_is_causal(_helix(1000), TOL, adapt_to_noise=True)
+
+
+def _glitched(y, starts, run, size, rng):
+    y = y.copy()
+    for s in starts:
+        v = rng.normal(0, 1, y.shape[1])
+        y[s:s + run] += size * v / np.linalg.norm(v)
+    return y
+
+
+@pytest.mark.parametrize("run", [1, 2, 3])
+def test_glitches_of_one_to_three_frames_are_found_and_replaced_by_the_line_around_them(run):
+    """Glitches of 2 units (20 tolerances) on a clean helix, and on one with noise of 1 tolerance: every glitch
+    sample is found and no other; adapted, the walk of the glitched helix is the clean helix's within 2 %."""
+    from drake_skills.promp.preprocessing import spike_samples
+
+    rng = np.random.default_rng(10 + run)
+    starts = np.arange(40, 460, 60)
+    truth = np.zeros(500, bool)
+    for s in starts:
+        truth[s:s + run] = True
+    clean = _helix()
+    assert not spike_samples(clean, TOL).any()
+    for base in (clean, clean + rng.normal(0, TOL, clean.shape)):
+        y = _glitched(base, starts, run, 2.0, rng)
+        np.testing.assert_array_equal(spike_samples(y, TOL), truth)
+    glitched = _glitched(clean, starts, run, 2.0, rng)
+    a = vertex_path(clean, TOL, adapt_to_noise=True)[2][-1]
+    b = vertex_path(glitched, TOL, adapt_to_noise=True)[2][-1]
+    assert b == pytest.approx(a, rel=0.02)
+    assert vertex_path(glitched, TOL)[2][-1] > 1.5 * a          # the plain walk counts each glitch twice
+
+
+def test_a_step_is_not_a_glitch_and_a_glitch_makes_the_walk_non_causal():
+    """A tracker that re-acquires the wrist 4 cm away and stays there (buetepage 017 has one) is motion, not a
+    glitch: out without coming back. A glitch makes the walk of a prefix differ from the whole's start."""
+    from drake_skills.promp.preprocessing import spike_samples, walk_is_causal
+
+    y = _helix()
+    y[250:] += np.array([1.0, 0.0, 0.0])
+    assert not spike_samples(y, TOL).any()
+    g = _glitched(_helix(), [100], 1, 2.0, np.random.default_rng(0))
+    assert spike_samples(g, TOL).sum() == 1 and not walk_is_causal(g, TOL, adapt_to_noise=True)
+    assert walk_is_causal(_helix(), TOL, adapt_to_noise=True)
+    # the last frame has no frame after it: a prefix that ends in a glitch keeps it
+    assert not spike_samples(g[:101], TOL).any()
