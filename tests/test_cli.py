@@ -134,6 +134,7 @@ def test_learn_writes_the_library_its_task_labels_and_a_summary_into_the_out_dir
     # motion capture (0.5 mm): noise at 0.04-0.05 of the tolerance (RESULTS.md, "Tracker noise"), nothing adapted
     noise = summary["tracker_noise"]
     assert 0.01 < noise["median"] <= noise["max"] < 0.1 and noise["adapted"] == 0
+    assert noise["glitch_samples"] == noise["with_glitches"] == 0
     assert summary["skipped"] == [f"skipped '{dataset / 'train' / 'subject1' / 'calibration.npz'}': a calibration "
                                   f"file (it gives the subject's workspace)"]
 
@@ -232,16 +233,21 @@ def test_learn_notes_demonstrations_whose_tracker_noise_makes_the_walk_adapt(dat
     shutil.copy(src / "calibration.npz", noisy / "calibration.npz")
     rng = np.random.default_rng(0)
     files = sorted(f for f in src.glob("*.npz") if f.name != "calibration.npz")
-    for f in files:
+    for i, f in enumerate(files):
         with np.load(f) as z:
             arrays = {k: z[k] for k in z.files}
         arrays["human"] = arrays["human"] + rng.normal(0.0, 0.01, arrays["human"].shape)
+        if i < 2:  # a glitch of 30 cm for one frame in the first two
+            arrays["human"][40] += [0.3, 0.0, 0.0]
         np.savez(noisy / f.name, **arrays)
     out = tmp_path / "out"
     assert main(["learn", str(noisy), "--out", str(out)]) == 0
     noise = json.loads((out / "learn.json").read_text())["tracker_noise"]
     assert noise["adapted"] == len(files) and 0.6 < noise["median"] < 1.2
-    assert f"note: {len(files)} of {len(files)} demonstration(s) have tracker noise above 0.3" in capsys.readouterr().out
+    assert noise["glitch_samples"] == noise["with_glitches"] == 2
+    out = capsys.readouterr().out
+    assert f"note: {len(files)} of {len(files)} demonstration(s) have tracker noise above 0.3" in out
+    assert f"note: 2 of {len(files)} demonstration(s) have tracker glitches (2 samples" in out
 
 
 def test_learn_on_a_generated_csv_folder_reads_each_demonstration_once(tmp_path, capsys):

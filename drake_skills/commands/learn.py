@@ -143,20 +143,25 @@ def _noise_report(config, demos, workspaces) -> dict:
 
     ``adapted`` counts those above ``share`` (``NOISE_SHARE``), whose walk ``adapt_to_noise`` changes
     (``promp.preprocessing.vertex_path``). Noise the tracker smoothed in time is not seen.
+    ``glitch_samples`` / ``with_glitches``: samples of the tracker's glitches
+    (``promp.preprocessing.spike_samples``) and the demonstrations that have any.
     """
-    from drake_skills.promp.preprocessing import NOISE_SHARE, noise_level
+    from drake_skills.promp.preprocessing import NOISE_SHARE, noise_level, spike_samples
 
     tol = config.resample_tolerance
     if not tol > 0:
-        return {"median": None, "max": None, "adapted": 0, "share": NOISE_SHARE}
-    shares = []
+        return {"median": None, "max": None, "adapted": 0, "share": NOISE_SHARE, "glitch_samples": 0,
+                "with_glitches": 0}
+    shares, glitches = [], []
     for d, (ws, _) in zip(demos, workspaces):
         ws = ws if ws is not None else config.workspace
         y = ws.normalize(d.human) if ws is not None else d.human
         shares.append(noise_level(y) / tol)
+        glitches.append(int(spike_samples(y, tol).sum()))
     shares = np.asarray(shares)
     return {"median": round(float(np.median(shares)), 4), "max": round(float(shares.max()), 4),
-            "adapted": int(np.sum(shares > NOISE_SHARE)), "share": NOISE_SHARE}
+            "adapted": int(np.sum(shares > NOISE_SHARE)), "share": NOISE_SHARE,
+            "glitch_samples": int(sum(glitches)), "with_glitches": int(sum(g > 0 for g in glitches))}
 
 
 def _learn(args, lib, votes, demos, workspaces, notes, out_file: Path, in_place: bool) -> int:
@@ -186,6 +191,10 @@ def _learn(args, lib, votes, demos, workspaces, notes, out_file: Path, in_place:
         print(f"[{n:4d}/{len(demos)}] {short_name(d.name, args.demos_dir)}: {what}{extra}  (K={lib.n_components})",
               flush=True)
     noise = _noise_report(lib.config, demos, workspaces)
+    if noise["with_glitches"]:
+        print(f"note: {noise['with_glitches']} of {len(demos)} demonstration(s) have tracker glitches "
+              f"({noise['glitch_samples']} samples far off the line between their neighbours, then back): "
+              + ("replaced by that line" if lib.config.adapt_to_noise else "kept, adapt_to_noise is off"))
     if noise["adapted"]:
         print(f"note: {noise['adapted']} of {len(demos)} demonstration(s) have tracker noise above "
               f"{noise['share']} of the arc-length tolerance (largest {noise['max']:.2f}): their path was smoothed and "
