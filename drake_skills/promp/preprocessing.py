@@ -134,8 +134,13 @@ def _frame_noise(frames: np.ndarray) -> float:
     d2 = d[1:] - d[:-1]
     with np.errstate(over="ignore", invalid="ignore"):   # huge values: an infinite level, refused by the walk's caller
         sq = np.einsum("ij,ij->i", d2, d2)
+    return _level_of(sq, frames.shape[1])
+
+
+def _level_of(sq: np.ndarray, dim: int) -> float:
+    """The noise level from the squared norms of a motion's second differences (see :func:`noise_level`)."""
     k = int(_NOISE_QUANTILE * (len(sq) - 1))        # the lower order statistic at the quantile
-    return math.sqrt(float(np.partition(sq, k)[k])) / (math.sqrt(6.0) * _chi_quantile(frames.shape[1]))
+    return math.sqrt(float(np.partition(sq, k)[k])) / (math.sqrt(6.0) * _chi_quantile(dim))
 
 
 def _noise_gain(width: float) -> float:
@@ -234,9 +239,12 @@ def spike_samples(y, tolerance: float) -> np.ndarray:
     if n < 5 or not tol > 0:
         return mask
     with np.errstate(over="ignore", invalid="ignore"):
-        d2 = np.linalg.norm(frames[2:] - 2.0 * frames[1:-1] + frames[:-2], axis=1)
-        sigma = _frame_noise(frames)
-        q90 = float(np.quantile(d2, 0.9))
+        second = frames[2:] - 2.0 * frames[1:-1] + frames[:-2]
+        sq = np.einsum("ij,ij->i", second, second)
+        sigma = _level_of(sq, frames.shape[1])
+        k = int(0.9 * (len(sq) - 1))                # the lower order statistic at the quantile
+        q90 = math.sqrt(float(np.partition(sq, k)[k]))
+        d2 = np.sqrt(sq)
         noise_q90 = math.sqrt(6.0) * _chi_quantile(frames.shape[1], 0.9) * sigma
         motion = max(q90 - noise_q90, 0.0)
         threshold = max(SPIKE_FACTOR * motion, SPIKE_NOISE * sigma, SPIKE_FLOOR * tol)
