@@ -110,8 +110,9 @@ def main(argv=None) -> None:
     a = p.parse_args(argv)
     if a.glitches:
         parts = [float(x) for x in a.glitches.split(",")]
-        if len(parts) not in (2, 3) or not (0 <= parts[0] < 1 and parts[1] >= 0):
-            p.error(f"--glitches RATE,SIZE[,RUN] with 0 <= RATE < 1, got {a.glitches!r}")
+        if len(parts) not in (2, 3) or not (0 <= parts[0] < 1 and parts[1] >= 0) or (len(parts) == 3 and not (
+                parts[2] >= 1 and parts[2] == int(parts[2]))):
+            p.error(f"--glitches RATE,SIZE[,RUN] with 0 <= RATE < 1, SIZE >= 0 and an integer RUN >= 1, got {a.glitches!r}")
         global GLITCHES
         GLITCHES = (parts[0], parts[1], int(parts[2]) if len(parts) == 3 else 1)
     print("| noise | plain walk: components / correct / wrong | adapt_to_noise |")

@@ -79,7 +79,7 @@ from drake_skills.library.views import (Component, DataWarning, Recognition, Uni
                                         Update, WorkspaceWarning)
 from drake_skills.promp.basis import GaussianBasis, ridge_weights
 from drake_skills.promp.interaction import InteractionProMP
-from drake_skills.promp.preprocessing import arc_length, resample_in_time
+from drake_skills.promp.preprocessing import arc_length, despiked, resample_in_time, spike_samples
 
 #: Normalized motions (Eq. 14 and their path) a library keeps for queries about the same
 #: samples: the gating, the conditioner and ``predict_robot`` ask about one prefix each tick.
@@ -393,6 +393,11 @@ class SkillLibrary(RecognitionMixin, FileMixin):
             elif cfg.subtract_start:
                 human = human - human[0]
         with np.errstate(over="ignore", invalid="ignore"):  # an overflowing path is refused just below
+            if cfg.adapt_to_noise and cfg.resample_tolerance > 0 and spike_samples(human, cfg.resample_tolerance)[0]:
+                # a tracker's glitch on the first sample would offset the whole motion (Eq. 14's start)
+                human = despiked(human, cfg.resample_tolerance)
+                if cfg.subtract_start:
+                    human = human - human[0]
             vertices, s = arc_length(human, cfg.resample_tolerance, adapt_to_noise=cfg.adapt_to_noise)
         if not np.isfinite(s[-1]):
             raise ValueError(f"{where + ': ' if where else ''}human positions are too large: their path length "

@@ -20,7 +20,7 @@ from drake_skills._checks import as_finite_array, check_increasing
 from drake_skills.data.workspace import Workspace
 
 __all__ = ["Workspace", "arc_length", "noise_level", "path_vertices", "prefix_samples", "resample_by_arc_length",
-           "resample_in_time", "spike_samples", "vertex_indices", "vertex_path", "walk_is_causal"]
+           "resample_in_time", "despiked", "spike_samples", "vertex_indices", "vertex_path", "walk_is_causal"]
 
 #: Tracker noise (per axis, :func:`noise_level`) may reach this share of the arc-length tolerance
 #: before the path adapts to it (``adapt_to_noise``), and the walk keeps the noise it leaves at
@@ -40,13 +40,13 @@ MAX_SMOOTHING = 2.0
 #: together than that (out and back, not a step). Chosen so that no sample of any clean data set we have is one (buetepage at 100, 33
 #: and 20 Hz, LASA-30, salad subjects 1-10, synthetic skills), while 10-30 cm glitches on
 #: buetepage are all found (RESULTS.md, "Tracker noise").
-SPIKE_FACTOR = 10.0
+SPIKE_FACTOR = 5.0
 SPIKE_FLOOR = 2.0
 SPIKE_RUN = 3
 #: ... and at least this many times the tracker's white noise per axis (:func:`noise_level`; its
 #: own excursions from the line between two neighbours stay below 6 times it in 99.99 % of
 #: frames), the noise's 0.9-quantile second difference being taken off the motion's.
-SPIKE_NOISE = 12.0
+SPIKE_NOISE = 8.0
 #: The quantile of the second differences that :func:`noise_level` reads, and the same
 #: quantile of the chi distribution with 1..20 degrees of freedom (norm of a D-dimensional
 #: standard normal), precomputed (scipy.stats.chi.ppf(0.1, D)).
@@ -227,13 +227,16 @@ def walk_is_causal(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False) -
 def spike_samples(y, tolerance: float) -> np.ndarray:
     """Which samples belong to a tracker's glitch (see ``SPIKE_FACTOR``): a boolean mask, shape (T,).
 
-    Samples a tracker repeats count as one frame. The first and the last frame are never one
-    (a glitch needs a frame on each side), so a prefix that ends in a glitch keeps it until
-    the next frame arrives.
+    Samples a tracker repeats count as one frame. The first frame is one when it lies farther
+    than the threshold from the second and the motion goes on smoothly from the second (3
+    times the next two steps); the last frame never is (out and back needs the frame after),
+    so a prefix that ends in a glitch keeps it until the next frame arrives.
     """
     y = as_finite_array(y, "trajectory", ndim=2, min_rows=1)
     mask = np.zeros(len(y), bool)
     tol = float(tolerance)
+    if not (math.isfinite(tol) and tol >= 0):
+        raise ValueError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
     frames, frame_of = _frames(y)
     n = len(frames)
     if n < 5 or not tol > 0:
@@ -266,12 +269,22 @@ def spike_samples(y, tolerance: float) -> np.ndarray:
                 if away.min() > 0.5 * threshold and excursion > threshold and math.sqrt(length_sq) < excursion:
                     glitch[j:b] = True
                     break
+        # the first frame has no frame before it: a glitch if it lies far from the second while the motion
+        # goes on smoothly from there (a jump of more than the threshold, 3 times the next two steps)
+        jump = float(np.linalg.norm(frames[1] - frames[0]))
+        steps = np.linalg.norm(np.diff(frames[1:4], axis=0), axis=1)
+        if not glitch[1] and jump > threshold and jump > 3.0 * float(steps.max()):
+            glitch[0] = True
     return glitch[frame_of]
 
 
-def _despiked(y: np.ndarray, tol: float) -> np.ndarray:
-    """``y`` with each glitch (:func:`spike_samples`) replaced by the line between the frames around it."""
-    bad = spike_samples(y, tol)
+def despiked(y, tolerance: float) -> np.ndarray:
+    """``y`` with each glitch (:func:`spike_samples`) replaced by the line between the frames around it.
+
+    A glitch on the first frame takes the second frame's position. ``y`` itself when there is none.
+    """
+    y = as_finite_array(y, "trajectory", ndim=2, min_rows=1)
+    bad = spike_samples(y, tolerance)
     if not bad.any():
         return y
     good = np.flatnonzero(~bad)
@@ -306,7 +319,7 @@ def vertex_path(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False
     if not (np.isfinite(tol) and tol >= 0):
         raise ValueError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
     if adapt_to_noise and tol > 0:
-        y, tol = _denoised(_despiked(y, tol), tol)
+        y, tol = _denoised(despiked(y, tol), tol)
     idx = _walk(y, tol)
     v = y[idx]
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(v, axis=0), axis=1))])

@@ -46,3 +46,24 @@ def test_positions_too_large_for_the_noise_check_are_refused_clearly_and_leave_t
     after = lib.state()
     assert after.n_seen == before.n_seen and len(after.components) == len(before.components)
     np.testing.assert_array_equal(after.components[0].cluster.mean, before.components[0].cluster.mean)
+
+
+def test_a_glitch_on_the_first_sample_does_not_offset_the_motion_it_starts():
+    """Eq. (14) subtracts the first sample: a first sample 2 units off (a tracker's glitch) would shift every
+    weight by it. The library replaces it first, so the glitched motion is recognized as the clean one (d^2 to
+    each component within 5 %; without the replacement it is unknown to all)."""
+    rng = np.random.default_rng(2)
+    lib = SkillLibrary(LibraryConfig())
+    for k in range(9):
+        lib.partial_fit(synthetic_demo(k % 3, rng))
+    d = synthetic_demo(1, rng)
+    g = d.human.copy()
+    g[0] += np.array([2.0, 0.0, 0.0])
+    clean, glitched = lib.recognize(d.human, observed_fraction=1.0), lib.recognize(g, observed_fraction=1.0)
+    assert glitched.status == clean.status == "skill" and glitched.component == clean.component
+    np.testing.assert_allclose(glitched.mahalanobis_sq, clean.mahalanobis_sq, rtol=0.05)
+    rng = np.random.default_rng(2)
+    plain = SkillLibrary(LibraryConfig(adapt_to_noise=False))
+    for k in range(9):
+        plain.partial_fit(synthetic_demo(k % 3, rng))
+    assert plain.recognize(g, observed_fraction=1.0).status == "unknown"

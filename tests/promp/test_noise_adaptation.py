@@ -219,3 +219,25 @@ def test_a_step_is_not_a_glitch_and_a_glitch_makes_the_walk_non_causal():
     assert walk_is_causal(_helix(), TOL, adapt_to_noise=True)
     # the last frame has no frame after it: a prefix that ends in a glitch keeps it
     assert not spike_samples(g[:101], TOL).any()
+
+
+def test_a_glitch_is_replaced_by_the_line_between_its_neighbours_held_frames_count_once_and_the_first_frame_too():
+    from drake_skills.promp.preprocessing import despiked, spike_samples
+
+    y = _helix()
+    g = y.copy()
+    g[100:102] += np.array([2.0, 0.0, 0.0])                     # two frames
+    out = despiked(g, TOL)
+    for k, w in ((100, 1 / 3), (101, 2 / 3)):
+        np.testing.assert_allclose(out[k], (1 - w) * y[99] + w * y[102], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(np.delete(out, [100, 101], axis=0), np.delete(g, [100, 101], axis=0))
+    # the same glitch on a tracker that repeats each frame 3 times: found on all its 6 samples
+    held = np.repeat(g, 3, axis=0)
+    assert np.flatnonzero(spike_samples(held, TOL)).tolist() == list(range(300, 306))
+    # a glitch on the first frame: found, and it takes the second frame's position
+    f = y.copy()
+    f[0] += np.array([0.0, 2.0, 0.0])
+    assert np.flatnonzero(spike_samples(f, TOL)).tolist() == [0]
+    np.testing.assert_array_equal(despiked(f, TOL)[0], y[1])
+    with pytest.raises(ValueError, match="tolerance"):
+        spike_samples(y, float("nan"))
