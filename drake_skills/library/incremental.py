@@ -393,12 +393,15 @@ class SkillLibrary(RecognitionMixin, FileMixin):
             elif cfg.subtract_start:
                 human = human - human[0]
         with np.errstate(over="ignore", invalid="ignore"):  # an overflowing path is refused just below
-            if cfg.adapt_to_noise and cfg.resample_tolerance > 0 and spike_samples(human, cfg.resample_tolerance)[0]:
-                # a tracker's glitch on the first sample would offset the whole motion (Eq. 14's start)
-                human = despiked(human, cfg.resample_tolerance)
-                if cfg.subtract_start:
-                    human = human - human[0]
-            vertices, s = arc_length(human, cfg.resample_tolerance, adapt_to_noise=cfg.adapt_to_noise)
+            adapt = cfg.adapt_to_noise and cfg.resample_tolerance > 0
+            if adapt:
+                glitches = spike_samples(human, cfg.resample_tolerance)
+                if glitches.any():
+                    human = despiked(human, cfg.resample_tolerance, glitches=glitches)
+                    if glitches[0] and cfg.subtract_start:  # a glitch on the first sample would offset the
+                        human = human - human[0]            # whole motion (Eq. 14's start)
+            vertices, s = arc_length(human, cfg.resample_tolerance, adapt_to_noise=cfg.adapt_to_noise,
+                                     glitches_removed=adapt)
         if not np.isfinite(s[-1]):
             raise ValueError(f"{where + ': ' if where else ''}human positions are too large: their path length "
                              f"overflows (largest |value| {np.abs(human).max():.3g}); check the units and the workspace")

@@ -278,13 +278,16 @@ def spike_samples(y, tolerance: float) -> np.ndarray:
     return glitch[frame_of]
 
 
-def despiked(y, tolerance: float) -> np.ndarray:
+def despiked(y, tolerance: float, *, glitches: np.ndarray | None = None) -> np.ndarray:
     """``y`` with each glitch (:func:`spike_samples`) replaced by the line between the frames around it.
 
     A glitch on the first frame takes the second frame's position. ``y`` itself when there is none.
+    ``glitches``: the mask :func:`spike_samples` gave for ``y`` (not computed again).
     """
     y = as_finite_array(y, "trajectory", ndim=2, min_rows=1)
-    bad = spike_samples(y, tolerance)
+    bad = spike_samples(y, tolerance) if glitches is None else np.asarray(glitches, bool)
+    if bad.shape != (len(y),):
+        raise ValueError(f"glitches must be a mask of shape ({len(y)},), got {bad.shape}")
     if not bad.any():
         return y
     good = np.flatnonzero(~bad)
@@ -294,7 +297,7 @@ def despiked(y, tolerance: float) -> np.ndarray:
     return out
 
 
-def vertex_path(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False
+def vertex_path(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False, glitches_removed: bool = False
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The path walk of :func:`path_vertices` with the indices of its vertices and its arc length.
 
@@ -305,6 +308,7 @@ def vertex_path(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False
     of 1 / ``NOISE_SHARE`` times the noise left, so the vertices are smoothed samples (a
     deviation from the paper, which resamples the raw positions; RESULTS.md, "Tracker
     noise"). Without glitches and below that share the walk is exactly the plain one.
+    ``glitches_removed``: the caller has already passed ``y`` through :func:`despiked`.
 
     Returns
     -------
@@ -319,7 +323,7 @@ def vertex_path(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False
     if not (np.isfinite(tol) and tol >= 0):
         raise ValueError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
     if adapt_to_noise and tol > 0:
-        y, tol = _denoised(despiked(y, tol), tol)
+        y, tol = _denoised(y if glitches_removed else despiked(y, tol), tol)
     idx = _walk(y, tol)
     v = y[idx]
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(v, axis=0), axis=1))])
@@ -352,7 +356,7 @@ def _walk(y: np.ndarray, tol: float) -> np.ndarray:
     return np.asarray(kept, dtype=int)
 
 
-def arc_length(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False):
+def arc_length(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False, glitches_removed: bool = False):
     """Path vertices and their cumulative arc length (see :func:`path_vertices`).
 
     Returns
@@ -361,7 +365,7 @@ def arc_length(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False):
     s : array, shape (M,)
         ``s[0] = 0``, non-decreasing; ``s[-1]`` is the path length.
     """
-    _, v, s = vertex_path(y, tolerance, adapt_to_noise=adapt_to_noise)
+    _, v, s = vertex_path(y, tolerance, adapt_to_noise=adapt_to_noise, glitches_removed=glitches_removed)
     return v, s
 
 
