@@ -241,3 +241,16 @@ def test_a_glitch_is_replaced_by_the_line_between_its_neighbours_held_frames_cou
     np.testing.assert_array_equal(despiked(f, TOL)[0], y[1])
     with pytest.raises(ValueError, match="tolerance"):
         spike_samples(y, float("nan"))
+
+
+def test_despiked_takes_a_precomputed_mask_of_the_right_shape_only():
+    from drake_skills.promp.preprocessing import despiked, spike_samples
+
+    g = _glitched(_helix(), [100], 1, 2.0, np.random.default_rng(3))
+    mask = spike_samples(g, TOL)
+    np.testing.assert_array_equal(despiked(g, TOL, glitches=mask), despiked(g, TOL))
+    with pytest.raises(ValueError, match=r"glitches must be a mask of shape \(500,\)"):
+        despiked(g, TOL, glitches=mask[:-1])
+    # a walk told the glitches are removed does not look for them
+    assert vertex_path(g, TOL, adapt_to_noise=True, glitches_removed=True)[2][-1] > \
+        1.1 * vertex_path(g, TOL, adapt_to_noise=True)[2][-1]
