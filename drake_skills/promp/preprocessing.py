@@ -127,14 +127,18 @@ def _chi_quantile(dim: int, q: float = _NOISE_QUANTILE) -> float:
     return float(chi.ppf(q, dim))
 
 
+def _second_sq(frames: np.ndarray) -> np.ndarray:
+    """Squared norms of the second differences of ``frames`` (huge values: inf, refused by the walk's caller)."""
+    d = np.diff(frames, axis=0)
+    d2 = d[1:] - d[:-1]
+    with np.errstate(over="ignore", invalid="ignore"):
+        return np.einsum("ij,ij->i", d2, d2)
+
+
 def _frame_noise(frames: np.ndarray) -> float:
     if len(frames) < 5:
         return 0.0
-    d = np.diff(frames, axis=0)
-    d2 = d[1:] - d[:-1]
-    with np.errstate(over="ignore", invalid="ignore"):   # huge values: an infinite level, refused by the walk's caller
-        sq = np.einsum("ij,ij->i", d2, d2)
-    return _level_of(sq, frames.shape[1])
+    return _level_of(_second_sq(frames), frames.shape[1])
 
 
 def _level_of(sq: np.ndarray, dim: int) -> float:
@@ -151,7 +155,7 @@ def _noise_gain(width: float) -> float:
     return float(np.linalg.norm(gaussian_filter1d(impulse, width, mode="constant")))
 
 
-def _denoised(y: np.ndarray, tol: float) -> tuple[np.ndarray, float]:
+def _denoised(y: np.ndarray, tol: float, sigma: float | None = None) -> tuple[np.ndarray, float]:
     """The samples and the tolerance the path walk uses when it adapts to the tracker's noise.
 
     Unchanged while the noise is at most ``NOISE_SHARE`` of the tolerance (every data set
@@ -160,10 +164,11 @@ def _denoised(y: np.ndarray, tol: float) -> tuple[np.ndarray, float]:
     share, and the tolerance grows to 1 / NOISE_SHARE times what is left, so that a hold
     adds a ninth to a fiftieth of the path it adds to the plain walk (not none: two 3-D
     samples of the noise left lie that far apart about once in ten;
-    ``tests/promp/test_noise_adaptation.py``).
+    ``tests/promp/test_noise_adaptation.py``). ``sigma``: the noise level of ``y``'s frames, if known.
     """
     frames, frame_of = _frames(y)
-    sigma = _frame_noise(frames)
+    if sigma is None:
+        sigma = _frame_noise(frames)
     if not sigma > NOISE_SHARE * tol:
         return y, tol
     ratio = sigma / (NOISE_SHARE * tol)
@@ -233,18 +238,23 @@ def spike_samples(y, tolerance: float) -> np.ndarray:
     so a prefix that ends in a glitch keeps it until the next frame arrives.
     """
     y = as_finite_array(y, "trajectory", ndim=2, min_rows=1)
-    mask = np.zeros(len(y), bool)
     tol = float(tolerance)
     if not (math.isfinite(tol) and tol >= 0):
         raise ValueError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
+    return _glitches(y, tol)[0]
+
+
+def _glitches(y: np.ndarray, tol: float) -> tuple[np.ndarray, float]:
+    """:func:`spike_samples` of a checked ``y``, and the noise level of its frames (:func:`noise_level`)."""
     frames, frame_of = _frames(y)
     n = len(frames)
-    if n < 5 or not tol > 0:
-        return mask
+    if n < 5:
+        return np.zeros(len(y), bool), 0.0
+    sq = _second_sq(frames)
+    sigma = _level_of(sq, frames.shape[1])
+    if not tol > 0:
+        return np.zeros(len(y), bool), sigma
     with np.errstate(over="ignore", invalid="ignore"):
-        second = frames[2:] - 2.0 * frames[1:-1] + frames[:-2]
-        sq = np.einsum("ij,ij->i", second, second)
-        sigma = _level_of(sq, frames.shape[1])
         k = int(0.9 * (len(sq) - 1))                # the lower order statistic at the quantile
         q90 = math.sqrt(float(np.partition(sq, k)[k]))
         d2 = np.sqrt(sq)
@@ -275,7 +285,7 @@ def spike_samples(y, tolerance: float) -> np.ndarray:
         steps = np.linalg.norm(np.diff(frames[1:4], axis=0), axis=1)
         if not glitch[1] and jump > threshold and jump > 3.0 * float(steps.max()):
             glitch[0] = True
-    return glitch[frame_of]
+    return glitch[frame_of], sigma
 
 
 def despiked(y, tolerance: float, *, glitches: np.ndarray | None = None) -> np.ndarray:
@@ -288,6 +298,11 @@ def despiked(y, tolerance: float, *, glitches: np.ndarray | None = None) -> np.n
     bad = spike_samples(y, tolerance) if glitches is None else np.asarray(glitches, bool)
     if bad.shape != (len(y),):
         raise ValueError(f"glitches must be a mask of shape ({len(y)},), got {bad.shape}")
+    return _replaced(y, bad)
+
+
+def _replaced(y: np.ndarray, bad: np.ndarray) -> np.ndarray:
+    """``y`` with the samples of the mask ``bad`` on the line between the good ones around them (``y`` if none)."""
     if not bad.any():
         return y
     good = np.flatnonzero(~bad)
@@ -323,7 +338,11 @@ def vertex_path(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False, glit
     if not (np.isfinite(tol) and tol >= 0):
         raise ValueError(f"tolerance must be a finite number >= 0, got {tolerance!r}")
     if adapt_to_noise and tol > 0:
-        y, tol = _denoised(y if glitches_removed else despiked(y, tol), tol)
+        if glitches_removed:
+            y, tol = _denoised(y, tol)
+        else:
+            bad, sigma = _glitches(y, tol)
+            y, tol = (_denoised(_replaced(y, bad), tol) if bad.any() else _denoised(y, tol, sigma))
     idx = _walk(y, tol)
     v = y[idx]
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(v, axis=0), axis=1))])
