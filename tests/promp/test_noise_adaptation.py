@@ -254,3 +254,16 @@ def test_despiked_takes_a_precomputed_mask_of_the_right_shape_only():
     # a walk told the glitches are removed does not look for them
     assert vertex_path(g, TOL, adapt_to_noise=True, glitches_removed=True)[2][-1] > \
         1.1 * vertex_path(g, TOL, adapt_to_noise=True)[2][-1]
+
+
+def test_despiked_checks_the_motion_itself_when_given_a_mask_and_reads_a_0_1_mask_as_booleans():
+    from drake_skills.promp.preprocessing import despiked, spike_samples
+
+    g = _glitched(_helix(), [100], 1, 2.0, np.random.default_rng(3))
+    mask = spike_samples(g, TOL)
+    np.testing.assert_array_equal(despiked(g, TOL, glitches=mask.astype(int)), despiked(g, TOL))
+    bad = g.copy()
+    bad[5, 0] = np.nan
+    for y in (bad, g[:, 0], g[:0]):
+        with pytest.raises(ValueError, match="trajectory"):
+            despiked(y, TOL, glitches=np.zeros(len(y), bool))
