@@ -10,6 +10,15 @@ A rejected sample is output as NaN, which the gating skips: the observed motion 
 bridged over the gap (it is resampled by arc length, so a gap costs nothing), and a
 gap longer than the gating's ``lost_timeout`` makes the robot hold
 (:func:`drake_skills.systems.gating.gating_step`).
+
+The first sample of a trial has no accepted sample to be checked against, and a
+tracker's glitch there would become the start of Eq. (14) and the reference of every
+later check (a glitch farther than ``max_jump`` would reject the real wrist for the
+whole trial). So a trial's start is **confirmed** (:func:`start_chain`): it is the first
+of :data:`CONFIRM_SAMPLES` new samples in a row each within the speed bound of the one
+before (longer than the 1-3 frames a glitch lasts); until then the samples are
+rejected as ``"unconfirmed"``. Without a speed bound (``rule=None``) the first sample
+is the start, as before.
 """
 from __future__ import annotations
 
@@ -40,6 +49,49 @@ class SampleRule:
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"SampleRule.{name} must be positive, got {v!r}")
+
+
+#: New samples in a row, each within the speed bound of the one before, that confirm a
+#: trial's start (a tracker's glitch lasts 1-3 frames: ``promp.preprocessing.spike_samples``).
+CONFIRM_SAMPLES = 4
+
+
+def start_chain(p: np.ndarray, stamp: float, chain_last: np.ndarray | None, chain_stamp: float, count: int,
+                rule: SampleRule | None) -> int:
+    """How many samples in a row, ending with ``p``, move within the speed bound of the one before.
+
+    The start of a trial is confirmed when this reaches :data:`CONFIRM_SAMPLES`
+    (without a speed bound, ``rule=None``, at once). ``p`` must be a sample
+    :func:`screen_sample` found neither NaN nor stale.
+
+    Parameters
+    ----------
+    p : array, shape (D,)
+        Raw position (m).
+    stamp : float
+        When it was measured (s).
+    chain_last : array, shape (D,), or None
+        The last sample of the chain so far (None: no chain yet).
+    chain_stamp : float
+        Its stamp; a ``p`` with this stamp is that sample (already counted).
+    count : int
+        Samples in the chain so far.
+    rule : SampleRule or None
+
+    Returns
+    -------
+    int
+        The chain's length with ``p``: ``count + 1`` if ``p`` continues it, 1 if it
+        starts a new one (a sample that jumped from the chain, or the first),
+        ``CONFIRM_SAMPLES`` at once without a rule.
+    """
+    if rule is None:
+        return CONFIRM_SAMPLES
+    if chain_last is None or count < 1:
+        return 1
+    if stamp == chain_stamp:
+        return int(count)
+    return int(count) + 1 if screen_sample(p, stamp, chain_last, chain_stamp, None, rule) == "" else 1
 
 
 def screen_sample(p: np.ndarray, stamp: float, last_good: np.ndarray | None, last_good_stamp: float,
@@ -115,10 +167,13 @@ class WorkspaceNormalizer(LeafSystem):
 
     The output is in the library's normalized units, so the systems downstream
     hand it to the library as is (``normalized=True``): the Diagram normalizes
-    once. The start position is the first sample seen after a trial start (a
-    context reset): it is latched into discrete state by an initialization
-    event and, should the input only become valid later, by the first
-    periodic update (every 1/64 s) that finds no start yet.
+    once. The start position is the first sample of a trial (a context reset)
+    that the next :data:`CONFIRM_SAMPLES` - 1 new samples continue within the
+    speed bound (:func:`start_chain`; the first sample at all without a
+    ``rule``): the chain begins at an initialization event (or, should the input
+    only become valid later, at the first periodic update that finds a valid
+    sample) and is kept in discrete state. Until the start is confirmed the
+    output is NaN (the gating skips it: a delay of 3 ticks, 47 ms).
 
     Parameters
     ----------
@@ -149,8 +204,9 @@ class WorkspaceNormalizer(LeafSystem):
         dim = self._dim = workspace.dim
         self._wrist = self.DeclareVectorInputPort("human_wrist", dim)
         self._time = self.DeclareVectorInputPort("wrist_time", 1) if timestamped else None
-        # [start_normalized (dim); latched; last good raw sample (dim); its stamp; last seen stamp; has good; has seen]
-        self._state = self.DeclareDiscreteState(2 * dim + 5)
+        # [start_normalized (dim); start confirmed; last good raw sample (dim); its stamp; last seen stamp;
+        #  has good; has seen; last sample of the start chain (dim); its stamp; the chain's length]
+        self._state = self.DeclareDiscreteState(3 * dim + 7)
         self.DeclareInitializationDiscreteUpdateEvent(self._latch)
         self.DeclarePeriodicDiscreteUpdateEvent(LATCH_PERIOD, 0.0, self._update)
         self.DeclareForcedDiscreteUpdateEvent(self._update)
@@ -165,49 +221,75 @@ class WorkspaceNormalizer(LeafSystem):
     def rule(self) -> SampleRule | None:
         return self._rule
 
-    def _screen(self, context: Context) -> tuple[np.ndarray, float, str]:
-        """The input sample, its stamp and the verdict of :func:`screen_sample` against the state."""
+    def _screen(self, context: Context) -> tuple[np.ndarray, float, str, int]:
+        """The input sample, its stamp, the verdict against the state and the start chain's length with it.
+
+        The verdict is :func:`screen_sample`'s, or ``"unconfirmed"`` for a sample that
+        passes it while the trial's start is not yet confirmed (:func:`start_chain`).
+        """
         x = context.get_discrete_state(self._state).get_value()
         D = self._dim
         p = np.asarray(self._wrist.Eval(context), float)
         stamp = float(self._time.Eval(context)[0]) if self._time is not None else context.get_time()
-        good = np.array(x[D + 1:2 * D + 1]) if x[2 * D + 3] > 0.5 else None
+        confirmed = x[2 * D + 3] > 0.5
+        good = np.array(x[D + 1:2 * D + 1]) if confirmed else None
         seen = float(x[2 * D + 2]) if x[2 * D + 4] > 0.5 and self._time is not None else None  # no stamps: all new
-        return p, stamp, screen_sample(p, stamp, good, float(x[2 * D + 1]), seen, self._rule)
+        verdict = screen_sample(p, stamp, good, float(x[2 * D + 1]), seen, self._rule)
+        chain = 0
+        if verdict == "" and not confirmed:
+            count = int(round(x[3 * D + 6]))
+            last = np.array(x[2 * D + 5:3 * D + 5]) if count > 0 else None
+            chain = start_chain(p, stamp, last, float(x[3 * D + 5]), count, self._rule)
+            if chain < CONFIRM_SAMPLES:
+                verdict = "unconfirmed"
+        return p, stamp, verdict, chain
 
     def start(self, context: Context) -> np.ndarray | None:
-        """The latched normalized start position, or None before the first sample."""
+        """The normalized start position, or None before the trial's start is confirmed."""
         x = context.get_discrete_state(self._state).get_value()
         return None if x[self._dim] < 0.5 else np.array(x[:self._dim])
 
     def _latch(self, context: Context, discrete_state: DiscreteValues) -> None:
-        """At initialization: latch the start from an acceptable sample (the screening state starts afresh)."""
+        """At initialization: the first sample of a trial begins the start chain (the screening state starts afresh).
+
+        Without a speed bound it is the start; with one the chain must reach
+        :data:`CONFIRM_SAMPLES` (:meth:`_update`).
+        """
         x = np.array(context.get_discrete_state(self._state).get_value())
         D = self._dim
         p = np.asarray(self._wrist.Eval(context), float)
-        if x[D] >= 0.5 or not np.isfinite(p).all():
+        stamp = float(self._time.Eval(context)[0]) if self._time is not None else context.get_time()
+        if x[D] >= 0.5 or x[3 * D + 6] > 0.5 or not np.isfinite(p).all() or not np.isfinite(stamp):
             return
         x[:D] = self._workspace.normalize(p.reshape(1, -1), subtract_start=False)[0]
-        x[D] = 1.0
+        if self._rule is None:
+            x[D] = 1.0
+        else:
+            x[2 * D + 5:3 * D + 5], x[3 * D + 5], x[3 * D + 6] = p, stamp, 1.0
         discrete_state.get_mutable_vector(self._state).SetFromVector(x)
 
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         x = np.array(context.get_discrete_state(self._state).get_value())
         D = self._dim
-        p, stamp, verdict = self._screen(context)
+        p, stamp, verdict, chain = self._screen(context)
         if np.isfinite(stamp):
             x[2 * D + 2], x[2 * D + 4] = stamp, 1.0
+        if verdict == "unconfirmed" or (verdict == "" and x[2 * D + 3] < 0.5):
+            if x[D] < 0.5 and (chain == 1 or x[3 * D + 6] < 0.5):  # a new chain: this sample would be the start
+                x[:D] = self._workspace.normalize(p.reshape(1, -1), subtract_start=False)[0]
+            x[2 * D + 5:3 * D + 5], x[3 * D + 5], x[3 * D + 6] = p, stamp, float(chain)
         if verdict == "":
             x[D + 1:2 * D + 1], x[2 * D + 1], x[2 * D + 3] = p, stamp, 1.0
-            if x[D] < 0.5:
-                x[:D] = self._workspace.normalize(p.reshape(1, -1), subtract_start=False)[0]
-                x[D] = 1.0
+            x[D] = 1.0  # the start (the chain's first sample) is confirmed
         discrete_state.get_mutable_vector(self._state).SetFromVector(x)
 
     def _calc_normalized(self, context: Context, output: BasicVector) -> None:
-        p, _, verdict = self._screen(context)
+        p, _, verdict, _ = self._screen(context)
         if verdict:
             output.SetFromVector(np.full(self._dim, np.nan))
             return
-        output.SetFromVector(normalized_relative(self._workspace, p, self.start(context),
-                                                 subtract_start=self._subtract_start))
+        x = context.get_discrete_state(self._state).get_value()
+        D = self._dim
+        # the start, or the chain's first sample when this sample confirms it (the update runs after this read)
+        start = np.array(x[:D]) if x[D] > 0.5 or x[3 * D + 6] > 0.5 else None
+        output.SetFromVector(normalized_relative(self._workspace, p, start, subtract_start=self._subtract_start))

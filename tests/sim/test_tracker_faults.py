@@ -208,3 +208,30 @@ def test_over_lcm_the_station_s_faulty_tracker_leaves_the_commands_within_limits
         assert not outcome.executed
     else:
         assert (outcome.status, outcome.component) == (perfect.status, perfect.component), (outcome, perfect)
+
+
+@pytest.mark.parametrize("frames", [1, 3])
+def test_a_glitch_on_the_first_frames_of_a_trial_changes_nothing(taught, monkeypatch, frames):
+    """The first 1 or 3 ticks of the feed are 0.4 m off (beyond max_jump): the trial ends as with a clean feed.
+
+    Before the start was confirmed (``normalizer.start_chain``), the glitch became the trial's start and the
+    speed bound's reference: every real sample was an "outlier" and the trial ended "lost".
+    """
+    import drake_skills.systems.wrist_faults as wf
+
+    sim, demo = taught
+    monkeypatch.setattr(sim.config, "faults", TrackerFaults(latency=1e-9))
+    clean, _ = sim.run_trial(demo)
+    real = wf.tracker_feed
+
+    def glitched(trial, f, rng, margin):
+        feed = real(trial, f, rng, margin=margin)
+        pos = np.array(feed.positions)
+        pos[:frames] += [0.0, 0.0, 0.4]
+        return type(feed)(feed.times, pos, feed.stamps, feed.kinds)
+
+    monkeypatch.setattr(wf, "tracker_feed", glitched)
+    outcome, log = sim.run_trial(demo)
+    _within_limits(log)
+    assert clean.status == "skill" and outcome.status == clean.status and outcome.component == clean.component
+    assert outcome.executed == clean.executed
