@@ -23,6 +23,7 @@ def test_start_chain_counts_samples_within_the_speed_bound_of_the_one_before():
     near = P0 + [0.05, 0.0, 0.0]  # 0.05 m in 1/64 s: within 3 m/s * dt + 0.02 = 0.067 m
     far = P0 + [0.08, 0.0, 0.0]   # beyond it
     assert start_chain(near, DT, P0, 0.0, 2, RULE) == 3
+    assert start_chain(near, DT, P0, 0.0, 0, RULE) == 1  # an empty chain: the sample begins one
     assert start_chain(far, DT, P0, 0.0, 2, RULE) == 1
     assert start_chain(P0, 0.0, P0, 0.0, 2, RULE) == 2  # the chain's own last sample is not counted twice
     assert start_chain(far, DT, P0, 0.0, 2, None) == CONFIRM_SAMPLES  # no speed bound: confirmed at once
@@ -104,3 +105,24 @@ def test_without_a_speed_bound_the_first_sample_is_the_start_at_once():
     outs = [feed.step(p) for p in _motion(3)]
     np.testing.assert_allclose(outs[0], 0.0, atol=1e-12)
     np.testing.assert_allclose(outs[2], [10 * 0.3 * DT * 2, 0.0, 0.0], atol=1e-12)
+
+
+@pytest.mark.parametrize("rule", [None, RULE])
+def test_later_samples_do_not_move_a_start_latched_at_initialization(rule):
+    """The initialization event begins the trial with sample A; a different sample B at the first update
+    (and later ones) does not replace a start that is latched (rule None) or confirmed (with a rule)."""
+    from pydrake.systems.analysis import Simulator
+
+    norm = WorkspaceNormalizer(WS, rule=rule)
+    simulator = Simulator(norm)
+    context = simulator.get_mutable_context()
+    port = norm.GetInputPort("human_wrist")
+    port.FixValue(context, P0)
+    simulator.Initialize()
+    values = norm.AllocateDiscreteVariables()
+    for i in range(1, 2 * CONFIRM_SAMPLES):
+        context.SetTime(i * DT)
+        port.FixValue(context, P0 + [0.01 * i, 0.0, 0.0])
+        norm.CalcForcedDiscreteVariableUpdate(context, values)
+        context.SetDiscreteState(values)
+    np.testing.assert_allclose(norm.start(context), WS.normalize(P0[None], subtract_start=False)[0], atol=1e-12)
