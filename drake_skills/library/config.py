@@ -171,6 +171,13 @@ class LibraryConfig:
         ints = {"n_samples": 4, "n_basis_human": 2, "n_basis_robot": 2, "merge_min_age": 0, "delete_min_age": 0}
         for name, lo in ints.items():
             setattr(self, name, check_integer(getattr(self, name), f"LibraryConfig.{name}", lo))
+        numbers = ("basis_width", "prior_scale", "prior_strength", "expert_prior", "observation_noise", "ridge",
+                   "consolidation", "delete_min_support", "resample_tolerance", "prior_floor", "novelty_quantile",
+                   "merge_quantile", "split_quantile", "decision_risk", "shrinkage", "log_T_nov", "log_T_merge")
+        for name in numbers:
+            v = getattr(self, name)
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)):
+                raise ValueError(f"LibraryConfig.{name} must be a number, got {v!r}")
         positive = ["basis_width", "prior_scale", "prior_strength", "expert_prior", "observation_noise"]
         for name in positive:
             v = getattr(self, name)

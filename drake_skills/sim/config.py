@@ -147,6 +147,66 @@ class SimConfig:
             raise ValueError(f"SimConfig.z_factor must be in (0, 1], got {self.z_factor!r}")
 
 
+def _field_types(schema) -> dict:
+    """Field name -> type of a config dataclass (its annotations, as ``yaml_load_typed`` reads them)."""
+    import typing
+
+    return typing.get_type_hints(schema)
+
+
+def _parses(kind, value) -> bool:
+    try:
+        kind(value)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
+def _check_node(node, schema, where: str) -> None:
+    """Check the shape of a YAML mapping against a config dataclass before Drake's loader reads it.
+
+    ``yaml_load_typed`` stops on a node of the wrong kind with an ``AssertionError`` that names
+    neither the field nor the file (a section given as a number, a number given as text); this
+    names the field. Unknown keys are left to the loader, which names them.
+    """
+    import dataclasses
+    import typing
+
+    types = _field_types(schema)
+    for key, value in node.items():
+        if key not in types:
+            continue
+        kind = types[key]
+        name = f"{where}{key}"
+        optional = False
+        if typing.get_origin(kind) is Union:
+            args = [a for a in typing.get_args(kind) if a is not type(None)]
+            optional = len(args) < len(typing.get_args(kind))
+            if len(args) != 1:
+                continue
+            kind = args[0]
+        if value is None:
+            if optional:
+                continue
+            raise ValueError(f"'{name}' has no value (write one, or leave the key out for the default)")
+        if dataclasses.is_dataclass(kind):
+            if not isinstance(value, dict):
+                raise ValueError(f"'{name}' must be a mapping of {kind.__name__} fields, got {value!r}")
+            _check_node(value, kind, name + ".")
+        elif kind is bool:
+            if not isinstance(value, bool):
+                raise ValueError(f"'{name}' must be true or false, got {value!r}")
+        elif kind is int:
+            if isinstance(value, bool) or not isinstance(value, (int, str)) or not _parses(int, value):
+                raise ValueError(f"'{name}' must be an integer, got {value!r}")
+        elif kind is float:  # text the loader reads as a number is one (YAML 1.1 reads 1e-9 as text)
+            if isinstance(value, bool) or not isinstance(value, (int, float, str)) or not _parses(float, value):
+                raise ValueError(f"'{name}' must be a number, got {value!r}")
+        elif kind is str:
+            if not isinstance(value, str):
+                raise ValueError(f"'{name}' must be text, got {value!r}")
+
+
 def load_config(path: Union[str, Path, None] = None, *, defaults: Optional[SimConfig] = None) -> SimConfig:
     """Read a :class:`SimConfig` from YAML; missing fields keep their defaults.
 
@@ -171,9 +231,12 @@ def load_config(path: Union[str, Path, None] = None, *, defaults: Optional[SimCo
         raise FileNotFoundError(f"{where} does not exist")
     try:
         root = yaml_load(filename=str(path))
+        if root is None:
+            raise ValueError("the file is empty: write SimConfig fields, or LibraryConfig fields alone")
         if not isinstance(root, dict):
             raise ValueError(f"the document is a {type(root).__name__}, not a mapping of fields")
         library_fields = {f.name for f in fields(LibraryConfig)}
+        _check_node(root, LibraryConfig if root and set(root) <= library_fields else SimConfig, "")
         if root and set(root) <= library_fields:
             # the loader assigns fields of (a copy of) its defaults: start from changeable copies, as a
             # library's config is sealed

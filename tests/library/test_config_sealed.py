@@ -1,3 +1,4 @@
+import re
 """A library's settings cannot change under it: its novelty rule and caches are built from them."""
 import dataclasses
 
@@ -82,3 +83,11 @@ def test_a_changeable_config_deletes_a_field_back_to_its_default():
     cfg = LibraryConfig(ridge=0.5)
     del cfg.ridge  # an ordinary dataclass: the class default shows through
     assert "ridge" not in vars(cfg) and cfg.ridge == LibraryConfig().ridge
+
+
+@pytest.mark.parametrize("field, value", [("prior_scale", "0.3"), ("ridge", None), ("shrinkage", True),
+                                          ("novelty_quantile", [0.999]), ("log_T_nov", "low")])
+def test_a_setting_that_is_not_a_number_is_an_error_naming_it(field, value):
+    """Before, text reached numpy and came back as "ufunc 'isfinite' not supported" (a cold review)."""
+    with pytest.raises(ValueError, match=re.escape(f"LibraryConfig.{field} must be a number, got {value!r}")):
+        LibraryConfig(**{field: value})

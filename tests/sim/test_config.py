@@ -63,6 +63,20 @@ def test_a_file_of_library_fields_alone_is_the_library_config(tmp_path):
     (": : bad yaml [\n", "is not valid YAML: .*line 1"),
     ("ridge: 0.1\n\tn_samples: 5\n", "is not valid YAML: .*'\\\\t'"),
     ("library:\n  ridge: [1, 2\n", "is not valid YAML"),
+    # a section or a value of the wrong kind: Drake's loader stops with a bare AssertionError (a cold review)
+    ("workspace: 5\n", "'workspace' must be a mapping of WorkspaceBounds fields, got 5"),
+    ("library: 5\n", "'library' must be a mapping of LibraryConfig fields"),
+    ("decision: 3\n", "'decision' must be a mapping of DecisionRule fields"),
+    ("lcm: x\n", "'lcm' must be a mapping of LcmConfig fields"),
+    ("faults: [1]\n", "'faults' must be a mapping of TrackerFaults fields"),
+    ("prior_scale: abc\n", "'prior_scale' must be a number, got 'abc'"),
+    ("decision: {end_phase: x}\n", "'decision.end_phase' must be a number"),
+    ("n_basis_robot: twenty\n", "'n_basis_robot' must be an integer"),
+    ("trials: 3.5\n", "'trials' must be an integer, got 3.5"),
+    ("library:\n  adapt_to_noise: 3\n", "'library.adapt_to_noise' must be true or false"),
+    ("subject_model: 3\n", "'subject_model' must be text"),
+    ("library:\n  ridge:\n", "'library.ridge' has no value"),
+    ("", "the file is empty"),
 ])
 def test_bad_settings_are_errors_naming_the_file_and_the_field(tmp_path, text, message):
     p = _write(tmp_path, text, "bad.yaml")
@@ -86,3 +100,10 @@ def test_the_library_file_keeps_a_config_read_from_yaml(tmp_path):
     lib.partial_fit(synthetic_demo(0, np.random.default_rng(0)))
     back = SkillLibrary.load(lib.save(tmp_path / "lib.npz")).config
     assert back.n_basis_robot == 12 and back.workspace.dict() == cfg.workspace.dict()
+
+
+def test_numbers_written_as_text_that_the_loader_reads_stay_numbers(tmp_path):
+    """YAML 1.1 reads 1e-9 as text; Drake's loader makes it the number, and the shape check lets it through."""
+    p = _write(tmp_path, "novelty_quantile: 1e-9\nn_samples: '50'\n", "ok.yaml")
+    cfg = load_config(p).library
+    assert cfg.novelty_quantile == 1e-9 and cfg.n_samples == 50
