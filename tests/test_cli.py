@@ -644,3 +644,30 @@ def test_learn_and_out_mistakes_are_errors_that_name_the_file(dataset, tmp_path,
     assert main(["learn", str(two), "--out", str(tmp_path / "b")]) == 1
     err = capsys.readouterr().err
     assert "workspace.json' is 2-D but demo" in err and "board_00.npz' has 3 human columns" in err
+
+
+@pytest.mark.parametrize("slip", ["human_mm", "robot_degrees"])
+def test_learn_refuses_a_demo_in_other_units_beside_a_workspace_and_leaves_the_library_as_it_was(
+        learned, dataset, tmp_path, capsys, slip):
+    """A cold review extended a library with one demonstration in mm beside a calibration in metres (and one
+    with the robot in degrees): both were learned, and every later query was 'undecided' (or the robot's
+    response 7.7 rad off). Now refused, naming the file; --raw-units teaches it anyway."""
+    import hashlib
+
+    more = tmp_path / "more"
+    more.mkdir()
+    d = load_demo(dataset / "held" / "tomato_03.npz")
+    d = Demonstration(t=d.t, human=d.human * 1000.0, robot=d.robot) if slip == "human_mm" else \
+        Demonstration(t=d.t, human=d.human, robot=np.degrees(d.robot))
+    save_npz(d, more / "tomato_03.npz")
+    shutil.copy(dataset / "held" / "calibration.npz", more / "calibration.npz")
+    lib_file = learned / "library.npz"
+    digest = hashlib.sha256(lib_file.read_bytes()).hexdigest()
+    assert main(["learn", str(more), "--library", str(lib_file), "--out", str(learned)]) == 1
+    err = capsys.readouterr().err
+    assert "tomato_03" in err and ("different units" in err if slip == "human_mm" else "times larger" in err), err
+    assert "--raw-units" in err or "check_units" in err
+    assert hashlib.sha256(lib_file.read_bytes()).hexdigest() == digest
+    out = tmp_path / "forced"
+    assert main(["learn", str(more), "--library", str(lib_file), "--out", str(out), "--raw-units"]) == 0
+    assert SkillLibrary.load(out / "library.npz").n_seen == SkillLibrary.load(lib_file).n_seen + 1

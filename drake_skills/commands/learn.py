@@ -39,9 +39,11 @@ def register(sub) -> None:
     add_seed(p, 0, "seed of the presentation order (default 0)")
     p.add_argument("--in-order", action="store_true", help="present the demonstrations in file order, not shuffled")
     p.add_argument("--raw-units", action="store_true",
-                   help="learn demonstrations without a workspace even when their motions span far less or far "
-                        "more than the normalized range (e.g. raw metres or millimetres); without it learn "
-                        "refuses them, as the library's settings would merge or split their skills")
+                   help="learn demonstrations whose units look wrong: without a workspace, motions that span "
+                        "far less or far more than the normalized range (e.g. raw metres or millimetres); with one, "
+                        "motions spanning more than ten workspaces (millimetres against a workspace in metres); "
+                        "robot values 30 times larger than the library's so far (degrees for radians). Without "
+                        "it learn refuses them, as the library's settings would merge or split their skills")
     p.set_defaults(func=run)
 
 
@@ -113,7 +115,18 @@ def _check_units(lib, demos, workspaces, raw_units: bool) -> None:
         if ws is not None and ws.dim != d.dim_human:
             raise ValueError(f"workspace '{source}' is {ws.dim}-D but demo '{d.name}' has {d.dim_human} human "
                              f"columns")
-    if raw_units or lib.config.workspace is not None:
+    if raw_units:
+        return
+    from drake_skills.library.guards import units_error
+
+    for d, (ws, source) in zip(demos, workspaces):
+        ws = ws if ws is not None else lib.config.workspace
+        if ws is not None:
+            message = units_error(ws.normalize(d.human, subtract_start=lib.config.subtract_start), ws,
+                                  f"demo '{d.name}' (workspace {source or 'of the library config'})")
+            if message is not None:
+                raise ValueError(message + ", or --raw-units to learn them as they are")
+    if lib.config.workspace is not None:
         return
     for d, (ws, _) in zip(demos, workspaces):
         if ws is not None:
@@ -180,7 +193,7 @@ def _learn(args, lib, votes, demos, workspaces, notes, out_file: Path, in_place:
     counts = {"created": 0, "merged": 0, "deleted": 0}
     for n, i in enumerate(order, 1):
         d = demos[i]
-        u = lib.partial_fit(d, workspace=workspaces[i][0])
+        u = lib.partial_fit(d, workspace=workspaces[i][0], check_units=not args.raw_units)
         if d.task is not None:
             votes.record(u, d.task)
         counts["created"] += len(u.created)

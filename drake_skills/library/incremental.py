@@ -68,7 +68,7 @@ from drake_skills.library.algorithm import ComponentModel, Components, Metric, f
 from drake_skills.library.bounded import put_bounded
 from drake_skills.library.config import NOVELTY_TESTS, LibraryConfig, WorkspaceBounds
 from drake_skills.library.gain import ConditioningGain
-from drake_skills.library.guards import UNITS_RANGE, data_warning
+from drake_skills.library.guards import UNITS_RANGE, data_warning, robot_units_error, seen_robot_rms, units_error
 from drake_skills.library.novelty import novelty_rule
 from drake_skills.library.files import FileMixin
 from drake_skills.library.recognition import RecognitionMixin, _Path
@@ -430,7 +430,10 @@ class SkillLibrary(RecognitionMixin, FileMixin):
         found = data_warning(y, ws, normalized, whole=whole, query=query, where=where,
                              trained_with_workspace=self._with_workspace)
         if found is not None:
-            self._warn_once(*found, stacklevel)
+            kind, category, message = found
+            # once per kind for queries and once for teaching: a query's warning must not silence the
+            # warning about a demonstration in other units, the one slip the library keeps
+            self._warn_once(f"{kind}:{'query' if query else 'teach'}", category, message, stacklevel)
 
     def human_samples(self, human, *, workspace: Workspace | None = None, observed_fraction: float = 1.0,
                       normalized: bool = False, where: str | None = None) -> np.ndarray:
@@ -515,7 +518,8 @@ class SkillLibrary(RecognitionMixin, FileMixin):
             self.partial_fit(d, workspace=workspace)
         return self
 
-    def partial_fit(self, demo: Demonstration, workspace: Workspace | None = None) -> Update:
+    def partial_fit(self, demo: Demonstration, workspace: Workspace | None = None, *,
+                    check_units: bool = True) -> Update:
         """Fold one demonstration into the library (Algorithm 1, :func:`~drake_skills.library.algorithm.fold_in`).
 
         Either the whole update happens or, if anything fails (bad input,
@@ -528,10 +532,21 @@ class SkillLibrary(RecognitionMixin, FileMixin):
             must be human-only).
         workspace : Workspace, optional
             The demonstrator's workspace (overrides ``config.workspace``).
+        check_units : bool
+            Refuse a demonstration whose units are plainly not the library's
+            (:func:`~drake_skills.library.guards.units_error`: a motion spanning more
+            than ten workspaces; :func:`~drake_skills.library.guards.robot_units_error`:
+            robot values 30 times larger than all so far, degrees for radians). False
+            teaches it anyway.
 
         Returns
         -------
         Update
+
+        Raises
+        ------
+        ValueError
+            For bad input or plainly wrong units (the library is unchanged).
         """
         if not isinstance(demo, Demonstration):
             raise ValueError(f"partial_fit takes a Demonstration, got {type(demo).__name__}")
@@ -543,10 +558,17 @@ class SkillLibrary(RecognitionMixin, FileMixin):
         w = self._weights(demo, y_h)
         if not np.isfinite(w).all():
             raise ValueError("demonstration gives non-finite weights")
+        h = demo.dim_human * self.config.n_basis_human
+        if check_units:
+            message = units_error(normalized_path.y, workspace if workspace is not None else cfg.workspace, where)
+            if message is None and demo.robot is not None and self._scale is not None:
+                s = self._scale
+                message = robot_units_error(w[h:], seen_robot_rms(s.total_mean, s.total_m2, s.n, h), where)
+            if message is not None:
+                raise ValueError(message)
         self._guard(normalized_path.y, workspace, False, whole=True, query=False, where=where)
         path = normalized_path.length
         n = self._n_seen
-        h = demo.dim_human * self.config.n_basis_human
         fit = cfg.basis_human.phi_uniform(y_h.shape[0]) @ w[:h].reshape(demo.dim_human, -1).T
         fit_residual = float(np.mean((y_h - fit) ** 2))
         comps = self._components if self._scale is not None else Components.of([], h)

@@ -169,3 +169,81 @@ def test_real_interactions_with_the_training_workspace_do_not_warn():
     assert _caught(lambda: [lib.recognize(d.human, workspace=ws, observed_fraction=1.0) for d in test]) == []
     # ... and the same recordings in metres without the workspace are caught
     assert [w.category for w in _caught(lambda: SkillLibrary().partial_fit(train[0]))] == [UnitsWarning]
+
+
+# --- refusals: the slips a warning cannot undo (a cold review taught a library mm data with a metres
+#     workspace, and robot joints in degrees; both were taken with at most a warning) ---
+
+def _taught_in_metres():
+    lib = SkillLibrary()
+    for i in range(4):
+        lib.partial_fit(_reach(0.3 + 0.01 * i, seed=i), workspace=WS_M)
+    return lib
+
+
+def _same_file(lib, tmp_path, name):
+    path = tmp_path / name
+    lib.save(path)
+    return path.read_bytes()
+
+
+def test_millimetres_with_a_workspace_in_metres_are_refused_and_change_nothing(tmp_path):
+    lib = _taught_in_metres()
+    before = _same_file(lib, tmp_path, "before.npz")
+    mm = _reach(300.0, seed=9)  # 0.3 m in millimetres: 5000 normalized units in a 0.6 m box
+    with pytest.raises(ValueError, match=r"more than 10 times its workspace's scale .*different units.*unchanged"):
+        lib.partial_fit(mm, workspace=WS_M)
+    assert _same_file(lib, tmp_path, "after.npz") == before
+    # ten workspaces (100 normalized units) is the line: 95 units are taught, 105 refused
+    box_m = float(np.ptp(WS_M.normalize(_reach(0.3, seed=9).human), axis=0).max())  # normalized span of 0.3 m
+    ok, bad = _reach(0.3 * 95.0 / box_m, seed=9), _reach(0.3 * 105.0 / box_m, seed=9)
+    taught = _taught_in_metres()
+    taught.partial_fit(ok, workspace=WS_M)
+    assert taught.n_seen == 5
+    with pytest.raises(ValueError, match="different units"):
+        _taught_in_metres().partial_fit(bad, workspace=WS_M)
+    with pytest.warns(UnitsWarning, match="same units"):
+        lib.partial_fit(mm, workspace=WS_M, check_units=False)  # asked for: taught, with the warning
+    assert lib.n_seen == 5
+
+
+@pytest.mark.parametrize("factor, refused", [(np.degrees(1.0), True), (1e150, True), (25.0, False)])
+def test_robot_values_far_larger_than_all_so_far_are_refused_and_change_nothing(tmp_path, factor, refused):
+    """Degrees for radians (57x) and absurd values are refused; 25x, inside the 30x factor, is taught."""
+    lib = _taught_in_metres()
+    before = _same_file(lib, tmp_path, "before.npz")
+    d = _reach(0.3, seed=7)
+    scaled = Demonstration(t=d.t, human=d.human, robot=d.robot * factor, name="deg.csv")
+    if refused:
+        with pytest.raises(ValueError, match=r"demo 'deg.csv': the robot's values are .* times larger .*unchanged"):
+            lib.partial_fit(scaled, workspace=WS_M)
+        assert _same_file(lib, tmp_path, "after.npz") == before
+        if factor < 1e3:
+            lib.partial_fit(scaled, workspace=WS_M, check_units=False)  # asked for: taught
+            assert lib.n_seen == 5
+    else:
+        lib.partial_fit(scaled, workspace=WS_M)
+        assert lib.n_seen == 5
+
+
+def test_the_robot_units_factor_leaves_room_over_the_spread_of_real_responses():
+    """Within one data set the robot weights' RMS differs by at most 2.7x (guards.ROBOT_UNITS_FACTOR's note)."""
+    from drake_skills.library.guards import ROBOT_UNITS_FACTOR
+
+    assert ROBOT_UNITS_FACTOR == 30.0
+    lib = SkillLibrary()
+    rms = [np.sqrt(np.mean(lib.encode(d)[lib.config.n_basis_human * 3:] ** 2))
+           for d in (synthetic_demo(k % 4, np.random.default_rng(k)) for k in range(8))]
+    assert max(rms) / min(rms) < ROBOT_UNITS_FACTOR / 5
+
+
+def test_a_query_warning_does_not_silence_the_warning_about_a_demonstration():
+    """Warned once per kind for queries and once for teaching: before, any units warning (a tiny query)
+    silenced the one about a demonstration in millimetres taught next."""
+    lib = SkillLibrary()
+    for i in range(3):
+        lib.partial_fit(synthetic_demo(0, np.random.default_rng(i)))
+    tiny = synthetic_demo(0, np.random.default_rng(5)).human[:12]
+    assert len(_caught(lambda: lib.recognize(tiny, observed_fraction=1.0))) == 1
+    got = _caught(lambda: lib.partial_fit(_reach(300.0)))
+    assert len(got) == 1 and got[0].category is UnitsWarning and "above" in str(got[0].message)
