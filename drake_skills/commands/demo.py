@@ -148,9 +148,14 @@ def run(args: argparse.Namespace) -> int:
           f"components: {summary.components}")
     print(f"taught tasks: {'n/a' if not math.isfinite(acc) else f'{100 * acc:.0f}%'} right of "
           f"{summary.known_trials} trials; wrong commits revised in time: {summary.wrong_commits - summary.wrong}")
+    untaught = summary.trials - summary.known_trials
+    if untaught:
+        print(f"tasks not yet taught: {untaught} trials, answered unknown and taught; in "
+              f"{summary.untaught_started} of them the robot started another task's response before stopping "
+              f"(largest joint displacement {summary.untaught_max_displacement_rad:.2f} rad)")
     if math.isfinite(summary.mean_decision_fraction):
         print(f"the robot committed at {100 * summary.mean_decision_fraction:.0f}% of the person's path on average, "
-              f"{summary.mean_lead_s:+.2f} s before the person stopped")
+              f"{summary.mean_lead_s:+.2f} s before the person stopped (over the trials that executed a skill)")
     print(f"flange error at handover (right skill): mean {summary.mean_flange_error_cm:.1f} cm, "
           f"max {summary.max_flange_error_cm:.1f} cm; joint tracking RMS {summary.mean_tracking_rms_rad:.4f} rad; "
           f"joint limits {'held' if summary.within_limits else 'VIOLATED'}")

@@ -153,6 +153,11 @@ class DemoSummary:
     wrong_commits: int
     #: Trials in which the committed skill was changed or given up.
     revised: int
+    #: Trials of a task not yet taught in which the robot started a response (committed to a skill of
+    #: another task) before the final "unknown" stopped it, and the largest joint displacement of a
+    #: trial of a task not yet taught (rad): what "asking for a demonstration" cost in motion.
+    untaught_started: int
+    untaught_max_displacement_rad: float
     #: Mean share of the person's path observed when the robot committed.
     mean_decision_fraction: float
     #: Mean seconds from the robot starting its response to the person's motion ending (positive: before).
@@ -475,6 +480,9 @@ def run_collaboration(config: SimConfig, demos: list[Demonstration], workspace: 
         unknown=sum(r.status == "unknown" for r in results),
         undecided_at_rest=sum(r.status == "undecided" for r in results),
         wrong_commits=sum(r.wrong_commit for r in results), revised=sum(r.revisions > 0 for r in results),
+        untaught_started=sum(bool(r.commits) for r in results if not r.task_known),
+        untaught_max_displacement_rad=max((r.max_displacement_rad for r in results if not r.task_known),
+                                          default=0.0),
         mean_decision_fraction=float(np.mean(fractions)) if fractions else float("nan"),
         mean_lead_s=float(np.mean(leads)) if leads else float("nan"),
         mean_flange_error_cm=float(flange.mean()) if flange.size else float("nan"),

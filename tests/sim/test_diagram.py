@@ -119,6 +119,9 @@ def test_demo_command_writes_a_recording_that_shows_the_robot_and_the_decision_c
     assert summary["seed"] == 0  # --seed wins over the file
     (r,) = summary["results"]
     assert r["trial"] == 1 and r["component"] is None and r["status"] == "unknown"
+    # an untaught task: whether the robot started a response, and how far it moved, are in the summary
+    assert summary["untaught_started"] == int(bool(r["commits"]))
+    assert summary["untaught_max_displacement_rad"] == r["max_displacement_rad"]
     assert (out / "trials" / "trial_01.png").stat().st_size > 5_000
     assert "drake-skills-legend" in html.read_text()
     lib = SkillLibrary.load(out / "library.npz")
