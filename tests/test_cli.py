@@ -671,3 +671,27 @@ def test_learn_refuses_a_demo_in_other_units_beside_a_workspace_and_leaves_the_l
     out = tmp_path / "forced"
     assert main(["learn", str(more), "--library", str(lib_file), "--out", str(out), "--raw-units"]) == 0
     assert SkillLibrary.load(out / "library.npz").n_seen == SkillLibrary.load(lib_file).n_seen + 1
+
+
+def test_a_failed_run_leaves_no_report_of_the_run_before(learned, dataset, tmp_path, capsys):
+    """A cold review found an earlier run's recognition.json/.csv, predictions.npz and learn.json left
+    after a failed run, with nothing to tell them from this run's."""
+    out = tmp_path / "rec"
+    assert main(["recognize", str(learned / "library.npz"), str(dataset / "held" / "bowl_03.npz"),
+                 "--out", str(out)]) == 0
+    assert (out / "recognition.json").is_file() and (out / "predictions.npz").is_file()
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    save_csv(load_demo(dataset / "held" / "bowl_03.npz"), bad / "bowl_nan.csv")
+    lines = (bad / "bowl_nan.csv").read_text().splitlines()
+    cells = lines[6].split(",")
+    lines[6] = ",".join([cells[0], "nan"] + cells[2:])  # a human cell of the 6th sample
+    (bad / "bowl_nan.csv").write_text("\n".join(lines) + "\n")
+    assert main(["recognize", str(learned / "library.npz"), str(bad), "--out", str(out)]) == 1
+    assert not any((out / n).exists() for n in ("recognition.json", "recognition.csv", "predictions.npz"))
+    lout = tmp_path / "learn"
+    assert main(["learn", str(dataset / "held"), "--out", str(lout)]) == 0 and (lout / "learn.json").is_file()
+    shutil.copy(dataset / "held" / "calibration.npz", bad / "calibration.npz")
+    assert main(["learn", str(bad), "--out", str(lout), "--force"]) == 1
+    assert not (lout / "learn.json").exists() and (lout / "library.npz").is_file()  # the library is not a report
+    capsys.readouterr()

@@ -24,6 +24,19 @@ def add_out(parser: argparse.ArgumentParser, command: str, what: str = "artifact
                         help=f"directory for {what} (default ./out/{command}); rewritten on every run")
 
 
+def clear_reports(out: Path, names) -> None:
+    """Remove an earlier run's reports ``names`` from ``out`` before this run starts.
+
+    A run that fails must not leave the previous run's reports looking like its own (the
+    README's convention: nothing from an earlier run is left to be taken for this one).
+    Only reports: a library in ``out`` is an input or refused, never removed here.
+    """
+    for name in names:
+        path = Path(out) / name
+        if path.is_file():
+            path.unlink()
+
+
 def add_seed(parser: argparse.ArgumentParser, seed: int | None = 0, seed_help: str | None = None) -> None:
     """Add ``--seed``; ``seed=None`` leaves it unset unless given (e.g. to keep a config file's seed)."""
     parser.add_argument("--seed", type=int, default=seed, help=seed_help or f"random seed (default {seed})")

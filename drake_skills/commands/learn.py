@@ -50,12 +50,13 @@ def register(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     from drake_skills import SkillLibrary
     from drake_skills._lock import FileLock, LockTimeout
-    from drake_skills.commands import WorkspaceFinder, scan_paths, tasks_file
+    from drake_skills.commands import WorkspaceFinder, clear_reports, scan_paths, tasks_file
     from drake_skills.data.demos import check_layout
     from drake_skills.library import storage
     from drake_skills.library.labels import TaskVotes
     from drake_skills.sim.config import load_library_config
 
+    clear_reports(args.out, ("learn.json",))
     if args.demos_dir.is_file():
         raise ValueError(f"'{args.demos_dir}' is a file: learn takes the folder of demonstrations it is in "
                          f"(learn {args.demos_dir.parent})")

@@ -56,11 +56,12 @@ def _prefix(lib, human, fraction: float, ws):
 
 def run(args: argparse.Namespace) -> int:
     from drake_skills import SkillLibrary
-    from drake_skills.commands import WorkspaceFinder, scan_paths, short_name, tasks_file
+    from drake_skills.commands import WorkspaceFinder, clear_reports, scan_paths, short_name, tasks_file
     from drake_skills.data.demos import check_layout
     from drake_skills.library.labels import TaskVotes
     from drake_skills.library.novelty import chi2_ppf
 
+    clear_reports(args.out, ("recognition.json", "recognition.csv", "predictions.npz"))
     if not 0 < args.fraction <= 1:
         raise ValueError(f"--fraction must be in (0, 1], got {args.fraction}")
     lib = SkillLibrary.load(args.library)
