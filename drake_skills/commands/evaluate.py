@@ -70,10 +70,14 @@ def register(sub) -> None:
                         f"or under ${SHARED_ENV}/data)")
     q.add_argument("--columns", choices=("hand", "arm"), default="hand",
                    help="human columns: the hand/wrist (6:9, default) or the whole arm (shoulder, elbow, hand: 0:9)")
-    q.add_argument("--orders", type=int, default=20, help="random orders of the training interactions (default 20)")
+    q.add_argument("--orders", type=int, default=None,
+                   help="random orders of the training interactions (default 20, --quick: 2)")
+    q.add_argument("--robot-units", default="rad",
+                   help="units of the file's robot columns, for the response tables (default rad: joint angles; "
+                        "e.g. m for a second person's arm)")
     q.add_argument("--rate", type=float, default=100.0,
                    help="sampling rate of the file in Hz (not stated by the source; default 100)")
-    q.add_argument("--quick", action="store_true", help="reduced run: 2 orders, fractions 0.1, 0.5, 1.0")
+    q.add_argument("--quick", action="store_true", help="reduced run: 2 orders (unless --orders), fractions 0.1, 0.5, 1.0")
     q.add_argument("--workers", type=int, default=available_workers(),
                    help="processes for the orders (default: available cores); results do not depend on it")
     q.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -107,10 +111,11 @@ def run_interaction(args: argparse.Namespace) -> int:
     t0 = time.time()
     if not Path(args.data).is_file():
         raise FileNotFoundError(f"interactions file '{args.data}' does not exist (give --data PATH)")
-    kw = dict(data=str(args.data), columns=args.columns, orders=args.orders, rate_hz=args.rate, seed=args.seed,
-              library=_library(args))
+    orders = args.orders if args.orders is not None else (2 if args.quick else 20)
+    kw = dict(data=str(args.data), columns=args.columns, orders=orders, rate_hz=args.rate, seed=args.seed,
+              library=_library(args), robot_units=args.robot_units)
     if args.quick:
-        kw.update(orders=2, fractions=(0.1, 0.5, 1.0))
+        kw.update(fractions=(0.1, 0.5, 1.0))
     rep = evaluate_interaction(InteractionSettings(**kw), workers=args.workers, progress=not args.no_progress)
     rep.summary["command"] = " ".join(["drake-skills", "eval", "interaction"] + sys.argv[3:])
     return _finish(rep, args.out, t0)

@@ -71,6 +71,9 @@ class InteractionSettings:
     n_steps: int = 100
     #: Sampling rate assumed for the file (the source does not state it).
     rate_hz: float = 100.0
+    #: Units of the file's robot columns, for the response tables ("rad": the YuMi's joint angles;
+    #: "m" for a second person's arm in metres).
+    robot_units: str = "rad"
     #: Experiment seed (the orders).
     seed: int = 0
     #: Settings of every library (its workspace is replaced by the training bounding box).
@@ -89,6 +92,8 @@ class InteractionSettings:
         self.fractions = tuple(float(x) for x in f)
         if not isinstance(self.library, LibraryConfig):
             raise ValueError(f"InteractionSettings.library must be a LibraryConfig, got {type(self.library).__name__}")
+        if not isinstance(self.robot_units, str) or not self.robot_units.strip():
+            raise ValueError(f"InteractionSettings.robot_units must be a name of units, got {self.robot_units!r}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -326,7 +331,7 @@ def _fractions(outcomes) -> list[float]:
     return [c, w, d, u]  # in OUTCOMES order
 
 
-def _fig(rep_rows, fractions, tasks, err_by_task):
+def _fig(rep_rows, fractions, tasks, err_by_task, robot_units: str = "rad"):
     import matplotlib.pyplot as plt
 
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 3.8))
@@ -350,7 +355,7 @@ def _fig(rep_rows, fractions, tasks, err_by_task):
                                    ("task mean (oracle label)", "0.5"))):
         ax2.bar(x + (j - 1) * 0.27, [err_by_task[t][j] for t in tasks], 0.27, color=c, label=name)
     ax2.set_xticks(x, tasks, fontsize=8)
-    ax2.set_ylabel("robot RMS joint error (rad)")
+    ax2.set_ylabel(f"robot RMS error ({robot_units})")
     ax2.set_title("Robot response on recognized test interactions", fontsize=9)
     ax2.legend(fontsize=7)
     fig.tight_layout()
@@ -414,9 +419,11 @@ def evaluate_interaction(settings: InteractionSettings, *, workers: int = 1, pro
         all_task_mean = [_rms(ctx.task_mean[d.task], r) for d, r in zip(ctx.test, ctx.test_robot) if
                          task in ("all", d.task)]
         rows.append([task, int(ok.sum()), *means, float(np.mean(all_task_mean))])
-    response = Table(["task", "executed", "conditioned (rad)", "component mean (rad)", "task mean, oracle (rad)",
-                      "task mean, all test (rad)"], rows,
-                     caption=("Robot response error: RMS joint error over 100 time steps and all joints against "
+    u = s.robot_units
+    response = Table(["task", "executed", f"conditioned ({u})", f"component mean ({u})", f"task mean, oracle ({u})",
+                      f"task mean, all test ({u})"], rows,
+                     caption=(f"Robot response error ({u}: the units of the file's robot columns): RMS error over "
+                              "100 time steps and all robot columns against "
                               "the recorded robot, on the test interactions recognized as a skill (executed, "
                               "over orders); baselines on the same interactions: the recognized component's "
                               "unconditioned mean and the mean of the training interactions of the true task. "
@@ -503,7 +510,7 @@ def evaluate_interaction(settings: InteractionSettings, *, workers: int = 1, pro
                   "conditioned response below task mean": bool(allr[0] < allr[2])},
     }
     if figures:
-        rep.figures = {"interaction": _fig(frac_rows, np.array(s.fractions), tasks, err_by_task)}
+        rep.figures = {"interaction": _fig(frac_rows, np.array(s.fractions), tasks, err_by_task, s.robot_units)}
     return rep
 
 

@@ -166,3 +166,20 @@ def test_development_splits_hold_out_the_rest_of_every_task_and_repeat_from_the_
         development_splits(train, taught_per_task=7)
     with pytest.raises(ValueError, match="needs a task"):
         development_splits(train + [Demonstration(t=np.linspace(0, 1, 5), human=np.zeros((5, 3)))])
+
+
+def test_cli_quick_keeps_the_orders_asked_for_and_names_the_robot_units(tmp_path, capsys):
+    """--quick ran 2 orders whatever --orders said (0 included) and every table said rad (a cold review)."""
+    from drake_skills.cli import main
+
+    out = tmp_path / "interaction"
+    assert main(["eval", "interaction", "--data", str(require()), "--quick", "--orders", "1", "--robot-units", "m",
+                 "--no-progress", "--workers", "1", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert len(s["components"]) == 1
+    header, _ = _rows(out / "response.csv")
+    assert "conditioned (m)" in header and not any("(rad)" in h for h in header)
+    capsys.readouterr()
+    assert main(["eval", "interaction", "--data", str(require()), "--quick", "--orders", "0", "--no-progress",
+                 "--out", str(tmp_path / "zero")]) == 1
+    assert "orders must be an integer >= 1, got 0" in capsys.readouterr().err
