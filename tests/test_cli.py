@@ -542,6 +542,22 @@ def test_plot_demos_counts_each_demonstration_once(dataset, tmp_path, capsys):
     assert "carry no 'subject' label; leave out --subject" in capsys.readouterr().err
 
 
+def test_plot_demos_says_which_columns_of_an_arm_it_plots_and_takes_others(dataset, tmp_path, capsys):
+    """A 9-column arm (shoulder, elbow, hand) was plotted by its first three columns, labelled as the wrist."""
+    arm = tmp_path / "arm"
+    arm.mkdir()
+    d = load_demo(dataset / "held" / "bowl_03.npz")
+    h = np.hstack([np.zeros_like(d.human), 0.5 * d.human, d.human])
+    Demonstration(t=d.t, human=h, robot=d.robot, task="bowl").save(arm / "bowl.npz")
+    capsys.readouterr()
+    assert main(["plot-demos", str(arm), "--out", str(tmp_path / "p")]) == 0
+    assert "plotting human columns 0,1,2 as x, y, z of 9; --columns I,J,K for others" in capsys.readouterr().out
+    assert main(["plot-demos", str(arm), "--columns", "6,7,8", "--out", str(tmp_path / "q")]) == 0
+    assert "plotting human columns 6,7,8" in capsys.readouterr().out and (tmp_path / "q" / "demos.png").is_file()
+    assert main(["plot-demos", str(arm), "--columns", "7,8,9", "--out", str(tmp_path / "r")]) == 1
+    assert "indices in 0..8" in capsys.readouterr().err
+
+
 def test_recognize_a_fraction_observes_the_shortest_prefix_that_covers_it(dataset, learned, tmp_path):
     from drake_skills.commands.recognize import _prefix
     from drake_skills.data.demos import load_workspace

@@ -7,6 +7,7 @@ per subject: how much the people differ in each task.
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from pathlib import Path
 
 #: Colour per task (matplotlib tab10); unknown tasks cycle through the rest.
@@ -25,6 +26,9 @@ def register(sub) -> None:
                     "one colour per subject (OUT/tasks.png: the spread per task).")
     p.add_argument("demos_dir", type=Path, metavar="DIR", help="directory of demonstrations (searched recursively)")
     p.add_argument("--subject", default=None, help="subject to plot (default: the first one found)")
+    p.add_argument("--columns", default=None, metavar="I,J,K",
+                   help="the three human columns to plot as x, y, z (0-based; default 0,1,2; e.g. 6,7,8 for the "
+                        "hand of a 9-column arm: shoulder, elbow, hand)")
     add_out(p, "plot-demos", "demos.png and tasks.png")
     p.set_defaults(func=run)
 
@@ -139,6 +143,12 @@ def run(args: argparse.Namespace) -> int:
     everyone = demos = scan.demos
     if not demos:
         raise ValueError(f"no demonstrations (.npz or .csv) found under '{args.demos_dir}'")
+    width = min(d.dim_human for d in demos)
+    cols = _columns(args.columns, width)
+    if cols != list(range(min(3, width))) or max(d.dim_human for d in demos) > 3:
+        print(f"note: plotting human columns {','.join(map(str, cols))} as x, y, z of "
+              f"{max(d.dim_human for d in demos)}" + ("" if args.columns else "; --columns I,J,K for others"))
+    everyone = demos = [replace(d, human=d.human[:, cols]) for d in demos]
     subjects = sorted({d.subject for d in demos if d.subject}, key=lambda s: (len(s), s))
     subject = args.subject or (subjects[0] if subjects else None)
     if subject is not None:
@@ -159,3 +169,17 @@ def run(args: argparse.Namespace) -> int:
         fig.savefig(path, dpi=90)
         print(f"wrote {path} (each task across {len(subjects)} subjects)")
     return 0
+
+
+def _columns(spec: str | None, width: int) -> list[int]:
+    """The human columns ``--columns`` names (default the first three), checked against ``width``."""
+    if spec is None:
+        return list(range(min(3, width)))
+    try:
+        cols = [int(c) for c in spec.split(",")]
+    except ValueError:
+        raise ValueError(f"--columns takes three column indices like 6,7,8, got {spec!r}") from None
+    if len(cols) not in (2, 3) or any(c < 0 or c >= width for c in cols):
+        raise ValueError(f"--columns takes 2 or 3 indices in 0..{width - 1} (the demonstrations have {width} human "
+                         f"columns), got {spec!r}")
+    return cols
