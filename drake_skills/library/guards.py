@@ -50,7 +50,7 @@ def data_warning(y: np.ndarray, ws: Workspace | None, normalized: bool, *, whole
     where : str or None
         What to call the motion in the message (e.g. a file name).
     trained_with_workspace : bool or None
-        Whether the library was trained with a workspace.
+        Whether the library was trained with a workspace (None: not known, or not trained yet).
     """
     if ws is None and not normalized and trained_with_workspace:
         call = "recognize()/predict_robot()" if query else "partial_fit()"
@@ -59,6 +59,13 @@ def data_warning(y: np.ndarray, ws: Workspace | None, normalized: bool, *, whole
                 f"one: the motion is taken in raw units and will likely be 'unknown'; give the subject's "
                 f"workspace (workspace= in Python, --workspace or a workspace.json / calibration.npz beside the "
                 f"files on the command line) or, for samples already in normalized units, normalized=True")
+    if ws is not None and not normalized and trained_with_workspace is False:
+        call = "recognize()/predict_robot()" if query else "partial_fit()"
+        return ("workspace", WorkspaceWarning,
+                f"{where + ': ' if where else ''}{call} with a workspace on a library trained without one (its "
+                f"demonstrations were taken as they were, e.g. learn --raw-units): the motion is normalized into "
+                f"other units than the library's and will likely be 'unknown'; leave out the workspace, or teach "
+                f"a new library with workspaces")
     scale = ws.scale if ws is not None else 10.0
     extent = float(np.ptp(y, axis=0).max())
     low, high = UNITS_RANGE[0] * scale, UNITS_RANGE[1] * scale
@@ -68,6 +75,10 @@ def data_warning(y: np.ndarray, ws: Workspace | None, normalized: bool, *, whole
             fix = "are the workspace and the data in the same units?"
         elif normalized:
             fix = "normalized=True expects samples in the library's normalized units (Eq. 14 applied)."
+        elif query and trained_with_workspace is False:
+            fix = ("the library was trained without a workspace too: if its demonstrations were in these units, "
+                   "its answers are consistent with them, but its settings (prior_floor) assume [0, %g]; a "
+                   "library taught with workspaces (Workspace.from_calibration) needs no such care." % scale)
         else:
             fix = ("raw metres or millimetres? Pass the subject's workspace= (Workspace.from_calibration("
                    "motions), or the bounding box of the training data: Workspace.from_calibration([d.human "

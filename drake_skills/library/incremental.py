@@ -428,7 +428,7 @@ class SkillLibrary(RecognitionMixin, FileMixin):
         """Warn about a missing workspace or data in other units (:func:`~drake_skills.library.guards.data_warning`)."""
         ws = workspace if workspace is not None else self.config.workspace
         found = data_warning(y, ws, normalized, whole=whole, query=query, where=where,
-                             trained_with_workspace=self._with_workspace)
+                             trained_with_workspace=self._with_workspace if self._n_seen else None)
         if found is not None:
             kind, category, message = found
             # once per kind for queries and once for teaching: a query's warning must not silence the

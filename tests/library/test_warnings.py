@@ -247,3 +247,17 @@ def test_a_query_warning_does_not_silence_the_warning_about_a_demonstration():
     assert len(_caught(lambda: lib.recognize(tiny, observed_fraction=1.0))) == 1
     got = _caught(lambda: lib.partial_fit(_reach(300.0)))
     assert len(got) == 1 and got[0].category is UnitsWarning and "above" in str(got[0].message)
+
+
+def test_a_workspace_given_to_a_library_trained_without_one_warns_and_a_first_one_does_not():
+    """A library taught as it was (learn --raw-units, or data already normalized) then asked with a workspace
+    answered 'unknown' without a word (a cold review); the first demonstration of a new library may bring one."""
+    lib = SkillLibrary()
+    for i in range(3):
+        lib.partial_fit(synthetic_demo(0, np.random.default_rng(i)))  # already normalized: no workspace
+    ws = Workspace([-5.0, -5.0, -5.0], [15.0, 15.0, 15.0])
+    query = synthetic_demo(0, np.random.default_rng(7)).human
+    got = _caught(lambda: lib.recognize(query, workspace=ws, observed_fraction=1.0))
+    assert len(got) == 1 and got[0].category is WorkspaceWarning and "trained without one" in str(got[0].message)
+    assert _caught(lambda: lib.recognize(query, observed_fraction=1.0)) == []  # as it was taught: no warning
+    assert _caught(lambda: SkillLibrary().partial_fit(_reach(0.3), workspace=WS_M)) == []
