@@ -19,6 +19,8 @@ from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Optional, Union
 
+import math
+
 import numpy as np
 import yaml
 from pydrake.common.yaml import yaml_load, yaml_load_typed
@@ -154,6 +156,17 @@ def _field_types(schema) -> dict:
     return typing.get_type_hints(schema)
 
 
+_BOOL_WORDS = {"true", "false", "yes", "no", "on", "off"}
+
+
+def _whole(value) -> bool:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        return False
+    return math.isfinite(x) and x == int(x)
+
+
 def _parses(kind, value) -> bool:
     try:
         kind(value)
@@ -193,12 +206,15 @@ def _check_node(node, schema, where: str) -> None:
             if not isinstance(value, dict):
                 raise ValueError(f"'{name}' must be a mapping of {kind.__name__} fields, got {value!r}")
             _check_node(value, kind, name + ".")
-        elif kind is bool:
-            if not isinstance(value, bool):
+        elif kind is bool:  # what Drake's loader reads as a bool: true/false (and yes/no, on/off), quoted or not
+            if not (isinstance(value, bool) or isinstance(value, str) and value.lower() in _BOOL_WORDS):
                 raise ValueError(f"'{name}' must be true or false, got {value!r}")
-        elif kind is int:
-            if isinstance(value, bool) or not isinstance(value, (int, str)) or not _parses(int, value):
+        elif kind is int:  # 100, 100.0 and '100' are the integer 100 to the loader
+            if isinstance(value, bool) or not isinstance(value, (int, float, str)) or not _whole(value):
                 raise ValueError(f"'{name}' must be an integer, got {value!r}")
+        elif typing.get_origin(kind) in (list, tuple):
+            if not isinstance(value, (list, tuple)):
+                raise ValueError(f"'{name}' must be a list, got {value!r}")
         elif kind is float:  # text the loader reads as a number is one (YAML 1.1 reads 1e-9 as text)
             if isinstance(value, bool) or not isinstance(value, (int, float, str)) or not _parses(float, value):
                 raise ValueError(f"'{name}' must be a number, got {value!r}")

@@ -20,7 +20,7 @@ before (longer than the 1-3 frames a glitch lasts); until then the samples are
 rejected as ``"unconfirmed"``. Without a speed bound (``rule=None``) the first sample
 is the start, as before.
 """
-from __future__ import annotations
+# No "from __future__ import annotations": yaml_load_typed reads SampleRule's real field types (SimConfig.wrist).
 
 from dataclasses import dataclass
 
