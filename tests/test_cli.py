@@ -556,6 +556,8 @@ def test_plot_demos_says_which_columns_of_an_arm_it_plots_and_takes_others(datas
     assert "plotting human columns 6,7,8" in capsys.readouterr().out and (tmp_path / "q" / "demos.png").is_file()
     assert main(["plot-demos", str(arm), "--columns", "7,8,9", "--out", str(tmp_path / "r")]) == 1
     assert "indices in 0..8" in capsys.readouterr().err
+    assert main(["plot-demos", str(arm), "--columns", "6,6,6", "--out", str(tmp_path / "s")]) == 1
+    assert "3 different indices" in capsys.readouterr().err
 
 
 def test_recognize_a_fraction_observes_the_shortest_prefix_that_covers_it(dataset, learned, tmp_path):
@@ -705,9 +707,25 @@ def test_a_failed_run_leaves_no_report_of_the_run_before(learned, dataset, tmp_p
     (bad / "bowl_nan.csv").write_text("\n".join(lines) + "\n")
     assert main(["recognize", str(learned / "library.npz"), str(bad), "--out", str(out)]) == 1
     assert not any((out / n).exists() for n in ("recognition.json", "recognition.csv", "predictions.npz"))
+    # learn.json is the report of the library.npz beside it: a failed learn leaves both as they were
     lout = tmp_path / "learn"
-    assert main(["learn", str(dataset / "held"), "--out", str(lout)]) == 0 and (lout / "learn.json").is_file()
+    assert main(["learn", str(dataset / "held"), "--out", str(lout)]) == 0
+    before = [(lout / n).read_bytes() for n in ("library.npz", "learn.json")]
     shutil.copy(dataset / "held" / "calibration.npz", bad / "calibration.npz")
     assert main(["learn", str(bad), "--out", str(lout), "--force"]) == 1
-    assert not (lout / "learn.json").exists() and (lout / "library.npz").is_file()  # the library is not a report
+    assert [(lout / n).read_bytes() for n in ("library.npz", "learn.json")] == before
     capsys.readouterr()
+
+
+def test_learn_checks_the_robot_units_across_the_batch_whatever_the_order(dataset, tmp_path, capsys):
+    """A demonstration in degrees shown first would set the scale the others are checked against (a cold
+    review: taught silently with --in-order); learn compares the whole batch first."""
+    folder = tmp_path / "batch"
+    shutil.copytree(dataset / "held", folder)
+    d = load_demo(folder / "bowl_03.npz")
+    save_npz(Demonstration(t=d.t, human=d.human, robot=np.degrees(d.robot), task="bowl"), folder / "a_deg.npz")
+    capsys.readouterr()
+    assert main(["learn", str(folder), "--in-order", "--out", str(tmp_path / "out")]) == 1
+    err = capsys.readouterr().err
+    assert "a_deg" in err and "times the RMS of the other demonstrations" in err and "--raw-units" in err
+    assert not (tmp_path / "out" / "library.npz").exists()

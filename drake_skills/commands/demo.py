@@ -16,8 +16,8 @@ def register(sub) -> None:
         description="Generate one simulated subject of the salad scenario, then run a stream of trials of the "
                     "five tasks in random order against an initially EMPTY skill library: the controller "
                     "recognizes the skill from the person's wrist and the simulated IIWA7 executes the "
-                    "conditioned response, or it answers 'unknown', holds still, and the trial's "
-                    "demonstration is folded into the library. Writes OUT/summary.json, OUT/library.npz, "
+                    "conditioned response, or it answers 'unknown' (stopping a response it may have started on "
+                    "the motion's beginning) and the trial's demonstration is folded into the library. Writes OUT/summary.json, OUT/library.npz, "
                     "OUT/trials/trial_NN.png (per trial: component probabilities and estimated phase against "
                     "time, commit and final answer marked) and OUT/demo.html (a self-contained meshcat "
                     "recording of the whole run).")
@@ -150,9 +150,9 @@ def run(args: argparse.Namespace) -> int:
           f"{summary.known_trials} trials; wrong commits revised in time: {summary.wrong_commits - summary.wrong}")
     untaught = summary.trials - summary.known_trials
     if untaught:
-        print(f"tasks not yet taught: {untaught} trials, answered unknown and taught; in "
-              f"{summary.untaught_started} of them the robot started another task's response before stopping "
-              f"(largest joint displacement {summary.untaught_max_displacement_rad:.2f} rad)")
+        print(f"tasks not yet taught: {untaught} trials; in {summary.untaught_started} of them the robot started "
+              f"another task's response on the motion's beginning (largest joint displacement "
+              f"{summary.untaught_max_displacement_rad:.2f} rad)")
     if math.isfinite(summary.mean_decision_fraction):
         print(f"the robot committed at {100 * summary.mean_decision_fraction:.0f}% of the person's path on average, "
               f"{summary.mean_lead_s:+.2f} s before the person stopped (over the trials that executed a skill)")

@@ -50,13 +50,12 @@ def register(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     from drake_skills import SkillLibrary
     from drake_skills._lock import FileLock, LockTimeout
-    from drake_skills.commands import WorkspaceFinder, clear_reports, scan_paths, tasks_file
+    from drake_skills.commands import WorkspaceFinder, scan_paths, tasks_file
     from drake_skills.data.demos import check_layout
     from drake_skills.library import storage
     from drake_skills.library.labels import TaskVotes
     from drake_skills.sim.config import load_library_config
 
-    clear_reports(args.out, ("learn.json",))
     if args.demos_dir.is_file():
         raise ValueError(f"'{args.demos_dir}' is a file: learn takes the folder of demonstrations it is in "
                          f"(learn {args.demos_dir.parent})")
@@ -118,7 +117,19 @@ def _check_units(lib, demos, workspaces, raw_units: bool) -> None:
                              f"columns")
     if raw_units:
         return
-    from drake_skills.library.guards import units_error
+    from drake_skills.library.guards import ROBOT_UNITS_FACTOR, units_error
+
+    # the robot's units, checked across the whole batch first: partial_fit compares a demonstration only
+    # with those taught before it, so a demonstration in degrees shown first would set the scale
+    rms = {d.name: float(np.sqrt(np.mean(np.square(d.robot)))) for d in demos if d.robot is not None}
+    if len(rms) >= 2:
+        typical = float(np.median(list(rms.values())))
+        odd = sorted(n for n, r in rms.items() if r > ROBOT_UNITS_FACTOR * typical)
+        if odd:
+            raise ValueError(f"demo(s) {', '.join(repr(n) for n in odd[:3])}{' ...' if len(odd) > 3 else ''}: "
+                             f"robot values more than {ROBOT_UNITS_FACTOR:g} times the RMS of the other "
+                             f"demonstrations (median {typical:.3g}): other units (degrees for radians)? Nothing was "
+                             f"learned; convert them, or --raw-units to learn them as they are")
 
     for d, (ws, source) in zip(demos, workspaces):
         ws = ws if ws is not None else lib.config.workspace

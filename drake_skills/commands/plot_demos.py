@@ -178,8 +178,8 @@ def _columns(spec: str | None, width: int) -> list[int]:
     try:
         cols = [int(c) for c in spec.split(",")]
     except ValueError:
-        raise ValueError(f"--columns takes three column indices like 6,7,8, got {spec!r}") from None
-    if len(cols) not in (2, 3) or any(c < 0 or c >= width for c in cols):
-        raise ValueError(f"--columns takes 2 or 3 indices in 0..{width - 1} (the demonstrations have {width} human "
-                         f"columns), got {spec!r}")
+        raise ValueError(f"--columns takes column indices like 6,7,8, got {spec!r}") from None
+    if len(cols) != min(3, width) or len(set(cols)) != len(cols) or any(c < 0 or c >= width for c in cols):
+        raise ValueError(f"--columns takes {min(3, width)} different indices in 0..{width - 1} (the demonstrations "
+                         f"have {width} human columns), got {spec!r}")
     return cols

@@ -63,7 +63,8 @@ def data_warning(y: np.ndarray, ws: Workspace | None, normalized: bool, *, whole
         call = "recognize()/predict_robot()" if query else "partial_fit()"
         return ("workspace", WorkspaceWarning,
                 f"{where + ': ' if where else ''}{call} with a workspace on a library trained without one (its "
-                f"demonstrations were taken as they were, e.g. learn --raw-units): the motion is normalized into "
+                f"demonstrations were taken as they were: no workspace.json or calibration.npz beside them, or "
+                f"partial_fit without workspace=): the motion is normalized into "
                 f"other units than the library's and will likely be 'unknown'; leave out the workspace, or teach "
                 f"a new library with workspaces")
     scale = ws.scale if ws is not None else 10.0
@@ -131,7 +132,7 @@ def robot_units_error(w_r: np.ndarray, seen_rms: float | None, where: str | None
     if not rms > ROBOT_UNITS_FACTOR * seen_rms:
         return None
     return (f"{where + ': ' if where else ''}the robot's values are {rms / seen_rms:.3g} times larger (RMS "
-            f"{rms:.3g}) than those of every demonstration so far (RMS {seen_rms:.3g}): other units (degrees for "
+            f"{rms:.3g}) than the RMS of all demonstrations so far ({seen_rms:.3g}): other units (degrees for "
             f"radians, millimetres for metres)? The library is unchanged; convert them, or pass check_units=False "
             f"(learn --raw-units) if the earlier responses barely moved the robot")
 

@@ -18,7 +18,11 @@ whole trial). So a trial's start is **confirmed** (:func:`start_chain`): it is t
 of :data:`CONFIRM_SAMPLES` new samples in a row each within the speed bound of the one
 before (longer than the 1-3 frames a glitch lasts); until then the samples are
 rejected as ``"unconfirmed"``. Without a speed bound (``rule=None``) the first sample
-is the start, as before.
+is the start, as before. Two limits, kept for safety (a wrist that jumped to another
+person must not be followed): a glitch that holds still for 4 or more ticks at a trial's
+start (62 ms at 64 Hz) becomes the start, and a wrist that moved farther than
+``max_jump`` while the tracker lost it stays rejected; either ends the trial "lost" (the
+robot holds) after the gating's ``lost_timeout``.
 """
 # No "from __future__ import annotations": yaml_load_typed reads SampleRule's real field types (SimConfig.wrist).
 
