@@ -22,8 +22,8 @@ __all__ = ["ROBOT_UNITS_FACTOR", "UNITS_RANGE", "data_warning", "robot_units_err
 #: box, salad 2.0-7.0, buetepage_hr 4.7-9.9) and 0.03-0.06 given in metres without a
 #: workspace (0.28-0.63 m); in millimetres, 28-63.
 UNITS_RANGE = (0.1, 10.0)
-#: A demonstration whose robot values are this many times larger (RMS over joints and time)
-#: than those of every demonstration the library has seen is refused: degrees for radians
+#: A demonstration whose robot weights are this many times larger in RMS than those of all
+#: the demonstrations the library has seen (pooled) is refused: degrees for radians
 #: (57x) or millimetres for metres. The RMS of the robot weights of one data set's
 #: demonstrations differs by at most 2.7x: buetepage_hr 1.05-2.30 rad (all 41), salad
 #: subjects 1-10 0.67-1.07 rad, 100 synthetic skills 0.31-0.83.
