@@ -729,3 +729,28 @@ def test_learn_checks_the_robot_units_across_the_batch_whatever_the_order(datase
     err = capsys.readouterr().err
     assert "a_deg" in err and "times the RMS of the other demonstrations" in err and "--raw-units" in err
     assert not (tmp_path / "out" / "library.npz").exists()
+
+
+def test_recognize_keep_going_reports_the_good_files_and_lists_the_bad(learned, dataset, tmp_path, capsys):
+    """One bad file stopped a whole batch (a cold review); with --keep-going the others are recognized, the bad
+    ones are listed with their error, and the exit status is 1."""
+    folder = tmp_path / "batch"
+    folder.mkdir()
+    for name in ("bowl_03.npz", "tomato_03.npz", "calibration.npz"):
+        shutil.copy(dataset / "held" / name, folder / name)
+    save_csv(load_demo(dataset / "held" / "board_03.npz"), folder / "board_nan.csv")
+    lines = (folder / "board_nan.csv").read_text().splitlines()
+    cells = lines[6].split(",")
+    lines[6] = ",".join([cells[0], "nan"] + cells[2:])
+    (folder / "board_nan.csv").write_text("\n".join(lines) + "\n")
+    out = tmp_path / "rec"
+    capsys.readouterr()
+    assert main(["recognize", str(learned / "library.npz"), str(folder), "--out", str(out)]) == 1  # stops
+    assert not (out / "recognition.json").exists()
+    assert main(["recognize", str(learned / "library.npz"), str(folder), "--keep-going", "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "board_nan.csv" in err and "1 file(s) could not be recognized" in err
+    rec = json.loads((out / "recognition.json").read_text())
+    assert sorted(r["file"] for r in rec["files"]) == ["bowl_03.npz", "tomato_03.npz"]
+    assert [Path(f["path"]).name for f in rec["failed"]] == ["board_nan.csv"] and "NaN" in rec["failed"][0]["error"]
+    assert {r["task"] for r in rec["files"]} == {"bowl", "tomato"}

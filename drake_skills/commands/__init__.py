@@ -115,12 +115,14 @@ class WorkspaceFinder:
             folder = folder.parent
 
 
-def scan_paths(paths: list[Path]):
+def scan_paths(paths: list[Path], *, failed: list | None = None):
     """Demonstration files named, or found in the folders named: ``[(demo, root)]`` and the notes.
 
     A folder is scanned with :func:`drake_skills.data.demos.scan_dir` (each demonstration
     once, non-demonstration files skipped with a note); its files' workspaces are looked
     for up to that folder. A file is read as it is; its workspace is looked for beside it.
+    ``failed``: a list that collects ``(path, error)`` of the files that cannot be read,
+    instead of raising on the first (``recognize --keep-going``).
     """
     from drake_skills.data.demos import load_demo, scan_dir
 
@@ -128,11 +130,18 @@ def scan_paths(paths: list[Path]):
     for p in paths:
         p = Path(p)
         if p.is_dir():
-            scan = scan_dir(p)
+            scan = scan_dir(p, keep_going=failed is not None)
             notes += scan.notes()
             out += [(d, p) for d in scan.demos]
+            if failed is not None:
+                failed += scan.failed
         elif p.is_file():
-            out.append((load_demo(p), p.parent))
+            try:
+                out.append((load_demo(p), p.parent))
+            except ValueError as exc:
+                if failed is None:
+                    raise
+                failed.append((p, str(exc)))
         else:
             raise FileNotFoundError(f"'{p}' does not exist")
     return out, notes

@@ -5,6 +5,7 @@ import argparse
 import csv
 import io
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +35,9 @@ def register(sub) -> None:
                    help="demonstration files (.npz, .csv) or folders of them")
     p.add_argument("--fraction", type=float, default=1.0,
                    help="observe only this fraction of each motion's path (default 1.0, the whole motion)")
+    p.add_argument("--keep-going", action="store_true",
+                   help="recognize the files that can be read and recognized, list the others with their error "
+                        "(recognition.json 'failed') and exit 1; without it the first bad file stops the run")
     add_workspace(p)
     add_out(p, "recognize", "recognition.json, recognition.csv and predictions.npz")
     p.set_defaults(func=run)
@@ -69,25 +73,38 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"library file '{args.library}' has no components: learn some demonstrations first")
     labels = tasks_file(args.library)
     votes = TaskVotes.from_dict(json.loads(labels.read_text())) if labels.is_file() else TaskVotes()
-    found, notes = scan_paths(args.paths)
+    failed = [] if args.keep_going else None
+    found, notes = scan_paths(args.paths, failed=failed)
     for note in notes:
         print(f"note: {note}")
-    if not found:
+    if not found and not failed:
         raise ValueError(f"no demonstrations (.npz or .csv) found in {', '.join(map(str, args.paths))}")
-    for d, _ in found:  # only the human part is used: a wrist-only recording is what recognition gets
-        check_layout(d, lib.dim_human_, lib.dim_robot_ if d.robot is not None else 0, f"the library '{args.library}'")
+    readable = []
+    for d, root in found:  # only the human part is used: a wrist-only recording is what recognition gets
+        try:
+            check_layout(d, lib.dim_human_, lib.dim_robot_ if d.robot is not None else 0,
+                         f"the library '{args.library}'")
+        except ValueError as exc:
+            if failed is None:
+                raise
+            failed.append((d.name, str(exc)))
+            continue
+        readable.append((d, root))
     finders = {}
     rows, preds, raw = [], [], []
-    for d, root in found:
+    for d, root in readable:
         find = finders.setdefault(root, WorkspaceFinder(args.workspace, root))
         ws, _ = find(d.name)
-        if ws is None:
-            raw.append(d.name)
         try:
             human = _prefix(lib, d.human, args.fraction, ws)
             rec = lib.recognize(human, observed_fraction=args.fraction, workspace=ws)
         except ValueError as exc:
-            raise ValueError(f"demo '{d.name}': {exc}") from None
+            if failed is None:
+                raise ValueError(f"demo '{d.name}': {exc}") from None
+            failed.append((d.name, str(exc)))
+            continue
+        if ws is None:
+            raw.append(d.name)
         near = rec.ids.index(rec.best) if rec.best is not None else int(np.argmin(rec.mahalanobis_sq))
         comp = rec.component
         row = {"file": short_name(d.name, root), "path": d.name, "true task": d.task, "decision": rec.status,
@@ -116,7 +133,7 @@ def run(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     result = {"library": str(args.library), "tasks": str(labels) if labels.is_file() else None,
               "fraction": args.fraction, "files": rows, "counts": counts, "skipped": notes,
-              "without_workspace": raw}
+              "without_workspace": raw, "failed": [{"path": str(p), "error": e} for p, e in failed or []]}
     (out / "recognition.json").write_text(json.dumps(result, indent=2) + "\n")
     (out / "recognition.csv").write_text(format_csv(rows))
     written = [out / "recognition.json", out / "recognition.csv"]
@@ -128,6 +145,12 @@ def run(args: argparse.Namespace) -> int:
         pred_path.unlink()  # an earlier run's, with another library: it belongs to nothing here
     print(f"wrote {', '.join(str(p) for p in written)}"
           + (f" ({len(preds)} robot trajectories)" if lib.has_robot else ""))
+    if failed:
+        for path, error in failed:
+            print(f"drake-skills recognize: error: {path}: {error}", file=sys.stderr)
+        print(f"drake-skills recognize: {len(failed)} file(s) could not be recognized (listed above and in "
+              f"recognition.json 'failed'); the table holds the other {len(rows)}", file=sys.stderr)
+        return 1
     return 0
 
 

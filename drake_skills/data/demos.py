@@ -203,11 +203,15 @@ class DirScan:
         Files that are not demonstrations, with the reason.
     duplicates : list of (Path, Path)
         (kept, same): a CSV read once because the npz of the same name holds the same data.
+    failed : list of (Path, str)
+        Demonstration files that could not be read, with the error (only with
+        ``scan_dir(..., keep_going=True)``; otherwise the first one raises).
     """
 
     demos: list = field(default_factory=list)
     skipped: list = field(default_factory=list)
     duplicates: list = field(default_factory=list)
+    failed: list = field(default_factory=list)
 
     def notes(self) -> list[str]:
         """One line per skipped file and per demonstration found twice."""
@@ -260,7 +264,7 @@ def _same_demo(a: Demonstration, b: Demonstration) -> str | None:
     return None
 
 
-def scan_dir(directory: str | Path) -> DirScan:
+def scan_dir(directory: str | Path, *, keep_going: bool = False) -> DirScan:
     """The demonstrations under ``directory`` (recursively), each once, and the files skipped.
 
     ``.npz`` and ``.csv`` files are read; hidden files are ignored. An npz and a CSV
@@ -274,8 +278,9 @@ def scan_dir(directory: str | Path) -> DirScan:
     FileNotFoundError
         If ``directory`` does not exist.
     ValueError
-        Naming the file, on the first malformed demonstration, or naming both files
-        of a name that holds two different demonstrations.
+        Naming the file, on the first malformed demonstration (with ``keep_going``:
+        recorded in :attr:`DirScan.failed` instead), or naming both files of a name that
+        holds two different demonstrations.
     """
     directory = Path(directory)
     if not directory.is_dir():
@@ -289,7 +294,13 @@ def scan_dir(directory: str | Path) -> DirScan:
         if why is not None:
             scan.skipped.append((p, why))
             continue
-        demo = load_demo(p)
+        try:
+            demo = load_demo(p)
+        except ValueError as exc:
+            if not keep_going:
+                raise
+            scan.failed.append((p, str(exc)))
+            continue
         key = (p.parent, p.stem.lower())
         if key in by_name:
             first = by_name[key]
