@@ -10,7 +10,10 @@ into what such a tracker delivers, a :class:`TrackerFeed`: at each tick of the t
 * NaN: the marker is lost for a tick; the position is NaN;
 * outlier: the position jumps ``outlier_distance`` metres in a random direction for a
   tick (another person, a reflection);
-* latency: every sample arrives ``latency`` seconds after it was measured.
+* latency: every sample arrives ``latency`` seconds after it was measured;
+* start glitch: the first ``start_glitch_ticks`` ticks of every trial are ``outlier_distance``
+  metres off in one random direction (the tracker finds the wrist in the wrong place before it
+  locks on; the normalizer confirms a start only after 4 consistent samples).
 
 Faults start at random ticks (a Poisson process per fault, ``*_rate`` per second,
 seeded), so a feed is reproducible. What the controller does with them is the rule of
@@ -25,12 +28,12 @@ from dataclasses import dataclass
 import numpy as np
 
 #: The fault kinds, as ``drake-skills demo --faults`` names them.
-FAULT_KINDS = ("dropout", "stale", "nan", "outlier", "latency")
+FAULT_KINDS = ("dropout", "stale", "nan", "outlier", "latency", "start")
 
 
 #: The rates ``drake-skills demo --faults KIND,...`` sets for each kind.
 PRESETS = {"dropout": {"dropout_rate": 0.5}, "stale": {"stale_rate": 0.5}, "nan": {"nan_rate": 2.0},
-           "outlier": {"outlier_rate": 2.0}, "latency": {"latency": 0.05}}
+           "outlier": {"outlier_rate": 2.0}, "latency": {"latency": 0.05}, "start": {"start_glitch_ticks": 3}}
 
 
 def faults_from_spec(spec: str) -> "TrackerFaults":
@@ -67,6 +70,8 @@ class TrackerFaults:
     latency: float = 0.0
     # period of the tracker's samples (s), exact in binary (128 Hz)
     period: float = 1.0 / 128.0
+    # ticks at the start of every trial delivered outlier_distance off (one direction per trial)
+    start_glitch_ticks: int = 0
 
     def __post_init__(self):
         for name in ("dropout_rate", "stale_rate", "nan_rate", "outlier_rate", "latency", "outlier_distance"):
@@ -77,12 +82,16 @@ class TrackerFaults:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"TrackerFaults.{name} must be positive, got {v!r}")
+        v = self.start_glitch_ticks
+        if isinstance(v, bool) or not float(v).is_integer() or v < 0:
+            raise ValueError(f"TrackerFaults.start_glitch_ticks must be an integer >= 0, got {v!r}")
+        self.start_glitch_ticks = int(v)
 
     @property
     def any(self) -> bool:
         """Does the tracker misbehave at all?"""
         return any(getattr(self, n) > 0 for n in ("dropout_rate", "stale_rate", "nan_rate", "outlier_rate",
-                                                  "latency"))
+                                                  "latency", "start_glitch_ticks"))
 
 
 @dataclass(frozen=True, eq=False)
@@ -155,6 +164,11 @@ def tracker_feed(trial, faults: TrackerFaults, rng, *, margin: float = 2.0) -> T
         u = rng.normal(size=3)
         positions[i] = positions[i] + faults.outlier_distance * u / np.linalg.norm(u)
         kinds[i] = "outlier"
+    if faults.start_glitch_ticks:
+        u = rng.normal(size=3)
+        k = min(n, faults.start_glitch_ticks)
+        positions[:k] = positions[:k] + faults.outlier_distance * u / np.linalg.norm(u)
+        kinds[:k] = "start"
     for a in (times, positions, stamps, kinds):
         a.setflags(write=False)
     return TrackerFeed(times, positions, stamps, kinds)
