@@ -39,7 +39,7 @@ def register(sub) -> None:
     p.add_argument("--lcm-wrist-drop", type=float, default=None, metavar="F",
                    help="--transport lcm: fraction of wrist messages the simulated bus drops (seeded)")
     p.add_argument("--faults", default=None, metavar="KINDS",
-                   help="a misbehaving wrist tracker: comma-separated dropout, stale, nan, outlier, latency (or "
+                   help="a misbehaving wrist tracker: comma-separated dropout, stale, nan, outlier, latency, start (or "
                         "all), at the rates of drake_skills.systems.wrist_faults.PRESETS; the same trials are "
                         "also run with a perfect tracker and the decisions printed side by side (OUT/faults.json)")
     p.add_argument("--meshcat", action="store_true",
