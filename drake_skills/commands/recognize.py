@@ -121,8 +121,10 @@ def run(args: argparse.Namespace) -> int:
     print(format_table(rows))
     dofs = sorted({r["dof"] for r in rows})
     limits = ", ".join(f"{chi2_ppf(lib.config.novelty_quantile, k):.1f} for {k} dof" for k in dofs)
-    print(f"d2: squared Mahalanobis distance to the best (or, if unknown, the nearest) component;\n"
-          f"    a motion is unknown to a component beyond {limits} (chi-square {lib.config.novelty_quantile} quantile)")
+    if rows:
+        print(f"d2: squared Mahalanobis distance to the best (or, if unknown, the nearest) component;\n"
+              f"    a motion is unknown to a component beyond {limits} (chi-square {lib.config.novelty_quantile} "
+              f"quantile)")
     counts = _counts(rows)
     if counts:
         print("labeled files: " + ", ".join(f"{v} {k}" for k, v in counts.items()))
@@ -147,7 +149,8 @@ def run(args: argparse.Namespace) -> int:
           + (f" ({len(preds)} robot trajectories)" if lib.has_robot else ""))
     if failed:
         for path, error in failed:
-            print(f"drake-skills recognize: error: {path}: {error}", file=sys.stderr)
+            named = error if str(path) in error else f"{path}: {error}"  # load errors name the file already
+            print(f"drake-skills recognize: error: {named}", file=sys.stderr)
         print(f"drake-skills recognize: {len(failed)} file(s) could not be recognized (listed above and in "
               f"recognition.json 'failed'); the table holds the other {len(rows)}", file=sys.stderr)
         return 1
