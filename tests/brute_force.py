@@ -85,7 +85,6 @@ class Reference:
         next_id = self.next_id
         out = dict(recognized=None, created=[], updated=[], merged=[], split=[], deleted=[], responsibilities={},
                    subcluster={})
-        changed = set()
         novel = True
         if items:
             metric = _metric(scale, h, cfg)
@@ -96,7 +95,6 @@ class Reference:
             cl = Cluster.of_sample(w, duration, path_length)
             items.append(ComponentModel(next_id, n, cl, (cl, None)))
             out["created"].append(next_id)
-            changed.add(next_id)
             next_id += 1
         else:
             support = self._support(items)
@@ -124,15 +122,14 @@ class Reference:
                 items[i] = ComponentModel(c.id, c.created, cluster, (a, b))
                 out["updated"].append(c.id)
                 out["subcluster"][c.id] = j
-                changed.add(c.id)
-        # merge
-        while len(items) > 1 and changed:
+        # merge: every pair, the closest first
+        while len(items) > 1:
             metric = _metric(scale, h, cfg)
             Z = self._means(items) @ metric[1].T
             support = self._support(items)
             created = np.array([c.created for c in items])
             best = None
-            for cid in sorted(changed):
+            for cid in sorted(c.id for c in items):
                 i = [c.id for c in items].index(cid)
                 diff = Z - Z[i]
                 d2m = np.einsum("ij,ij->i", diff, diff) / (1.0 / support + 1.0 / support[i])
@@ -155,7 +152,6 @@ class Reference:
             new = ComponentModel(keep.id, min(keep.created, gone.created), pooled, (keep.cluster, gone.cluster))
             items = [new if c.id == keep.id else c for c in items if c.id != gone.id]
             out["merged"].append((keep.id, gone.id))
-            changed = (changed - {gone.id}) | {keep.id}
         # split
         if items:
             metric = _metric(scale, h, cfg)

@@ -10,16 +10,19 @@
 3. update: a new component (Eq. 9), or every component that explains the motion by its
    responsibility (Eqs. 5-8, exact running moments), and the nearer of its two
    sub-clusters;
-4. merge (Eqs. 10-11): pairs involving a changed component whose two-sample distance
-   ``|mu_i - mu_j|^2_Sigma / (1/s_i + 1/s_j)`` is below the merge threshold; a merged
-   component keeps the two it came from as its sub-clusters;
-5. split: a changed component whose two sub-clusters have grown apart beyond the split
+4. merge (Eqs. 10-11): every pair whose two-sample distance
+   ``|mu_i - mu_j|^2_Sigma / (1/s_i + 1/s_j)`` is below the merge threshold, the
+   closest first (a component that did not change can come within it as the scale
+   moves); a merged component keeps the two it came from as its sub-clusters;
+5. split: a component whose two sub-clusters have grown apart beyond the split
    threshold becomes two again (so a merge made on an early, too-wide scale is undone
    once the scale has been learned);
 6. delete outliers by age and support.
 
 Every distance is computed on the whitened human means at once (one matrix product),
-so a step costs O(K h) arithmetic plus the work on the few changed components.
+so a step costs O(K h) arithmetic plus the work on the few changed components: a
+lower bound of every component's distance to its nearest other, carried from step to
+step (:func:`distance_shrink`), rules out the pairs that cannot merge.
 Nothing here mutates its arguments; the library commits a :class:`Step` in one
 assignment, so a failed step leaves it as it was.
 """
@@ -94,6 +97,12 @@ class Components:
         ``items[k].id``.
     path_length : array, shape (K,)
         Mean normalized path length of each component's demonstrations.
+    merge_bound : array, shape (K,)
+        A lower bound of each component's two-sample distance to its nearest other component
+        under the metric of ``bound_ref`` (0: unknown). Derived data
+        that only lets :func:`fold_in` skip merge checks that cannot succeed; never stored.
+    bound_ref : array, shape (h, h), or None
+        Inverse Cholesky factor of the gating covariance ``merge_bound`` holds under (None: no bound).
     """
 
     items: tuple = ()
@@ -104,6 +113,8 @@ class Components:
     sub_support: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     id_array: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     path_length: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    merge_bound: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    bound_ref: np.ndarray | None = None
 
     @property
     def path_lengths(self) -> np.ndarray:
@@ -122,13 +133,15 @@ class Components:
             sub_means, sub_support, ids, paths = np.zeros((0, 2, n_human)), np.zeros((0, 2)), np.zeros(0), np.zeros(0)
         return cls._frozen(items, means.reshape(K, n_human), support.astype(float), created.astype(np.int64),
                            sub_means.reshape(K, 2, n_human), sub_support.reshape(K, 2), ids.astype(np.int64),
-                           paths.astype(float))
+                           paths.astype(float), np.zeros(K))
 
     @classmethod
-    def _frozen(cls, items, *arrays) -> "Components":
+    def _frozen(cls, items, *arrays, bound_ref: np.ndarray | None = None) -> "Components":
         for a in arrays:
             a.setflags(write=False)
-        return cls(items, *arrays)
+        if bound_ref is not None:
+            bound_ref.setflags(write=False)
+        return cls(items, *arrays, bound_ref=bound_ref)
 
     def __len__(self) -> int:
         return len(self.items)
@@ -177,6 +190,8 @@ class _Work:
         self._sub_support = _grown(comps.sub_support, cap)
         self._ids = _grown(comps.id_array, cap)
         self._paths = _grown(comps.path_length, cap)
+        self._bound = _grown(comps.merge_bound if comps.merge_bound.shape[0] == K else np.zeros(K), cap)
+        self.bound_ref = comps.bound_ref
         self.n = K
 
     # views of the current rows
@@ -200,19 +215,30 @@ class _Work:
     def sub_support(self) -> np.ndarray:
         return self._sub_support[:self.n]
 
+    @property
+    def ids(self) -> np.ndarray:
+        return self._ids[:self.n]
+
+    @property
+    def merge_bound(self) -> np.ndarray:
+        """Writable: each row's lower bound of the distance to its nearest other (0 once the row changed)."""
+        return self._bound[:self.n]
+
     def _buffers(self) -> tuple:
-        return self._means, self._support, self._created, self._sub_means, self._sub_support, self._ids, self._paths
+        return (self._means, self._support, self._created, self._sub_means, self._sub_support, self._ids,
+                self._paths, self._bound)
 
     def set(self, i: int, c: ComponentModel) -> None:
         self.items[i] = c
         for buf, row in zip(self._buffers(), _rows(c, self.h)):
             buf[i] = row
+        self._bound[i] = 0.0  # a changed component's nearest distance is unknown
 
     def append(self, c: ComponentModel) -> None:
         if self.n == self._means.shape[0]:
             cap = 2 * self.n + 4
             (self._means, self._support, self._created, self._sub_means, self._sub_support, self._ids,
-             self._paths) = (_grown(a[:self.n], cap) for a in self._buffers())
+             self._paths, self._bound) = (_grown(a[:self.n], cap) for a in self._buffers())
         self.items.append(None)
         self.n += 1
         self.set(self.n - 1, c)
@@ -233,7 +259,7 @@ class _Work:
         return int(hit[0])
 
     def freeze(self) -> Components:
-        return Components._frozen(tuple(self.items), *(a[:self.n] for a in self._buffers()))
+        return Components._frozen(tuple(self.items), *(a[:self.n] for a in self._buffers()), bound_ref=self.bound_ref)
 
 
 def _grown(a: np.ndarray, rows: int) -> np.ndarray:
@@ -306,6 +332,21 @@ def two_sample_d2(whitened: np.ndarray, support: np.ndarray, i: int) -> np.ndarr
     return d2
 
 
+def distance_shrink(inv_chol_old: np.ndarray | None, metric: Metric) -> float:
+    """A factor ``f`` with ``|x|^2_new >= f |x|^2_old`` for every ``x``: how far any squared distance can shrink.
+
+    ``|x|^2_old = |L_old^{-1} x|^2`` and ``|x|^2_new = |L_new^{-1} x|^2``; with ``y = L_old^{-1} x``
+    and ``A = L_old^{-1} L_new``, ``|y| = |A L_new^{-1} x| <= |A|_2 |x|_new``, so
+    ``f = 1 / |A|_2^2``, and ``|A|_2^2 <= |A|_1 |A|_inf`` (a bound without a decomposition: a few
+    microseconds, and tight when the metric changed little). Taken a hair low (1e-9), so that
+    rounding never makes a bound exceed the distance it bounds. 0 without an old metric.
+    """
+    if inv_chol_old is None:
+        return 0.0
+    A = np.abs(inv_chol_old @ metric.chol)
+    return (1.0 - 1e-9) / float(A.sum(axis=0).max() * A.sum(axis=1).max())
+
+
 @dataclass(frozen=True, eq=False)
 class Step:
     """What :func:`fold_in` did: the new components and scale, and what to report and record."""
@@ -367,7 +408,6 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
     resp: Mapping = {}
     subs: dict = {}
     recognized = None
-    changed: set[int] = set()
 
     last: list = [None, None]  # (scale, its metric): the merge loop and the split step often see one scale
 
@@ -387,7 +427,6 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
     if novel:
         work.append(_new_component(next_id, demo_index, w, duration, path_length))
         created.append(next_id)
-        changed.add(next_id)
         history.append({"event": "created", "id": next_id, "demo": demo_index})
         next_id += 1
     else:
@@ -413,16 +452,30 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
             work.set(int(i), ComponentModel(c.id, c.created, cluster, (a, b)))
             updated.append(c.id)
             subs[c.id] = j
-            changed.add(c.id)
 
-    # 4. merge, starting from what changed (Eqs. 10-11)
-    while len(work.items) > 1 and changed:
+    # 4. merge (Eqs. 10-11): every pair within the merge threshold, the closest first. Algorithm 1
+    #    checks every component (past its merge age), not only those the update changed: the learned
+    #    scale moves under all of them and can bring two that did not change within the threshold (a
+    #    skill shown several times in a row fragments while the scale is still its prior, and its
+    #    fragments never change again). Each component's lower bound of the distance to its nearest
+    #    other (work.merge_bound, carried from step to step and shrunk by as much as the metric can
+    #    have shrunk any distance since) leaves out those whose nearest other is out of reach; the
+    #    result is that of scoring every pair.
+    while len(work.items) > 1:
         metric = metric_of(scale)
+        bound = work.merge_bound
+        if work.bound_ref is not metric.inv_chol:
+            bound *= distance_shrink(work.bound_ref, metric)
+            work.bound_ref = metric.inv_chol
+        rows = np.flatnonzero(bound < rule.merge_limit(work.support, h))
+        if not rows.size:
+            break
         Z = metric.whiten(work.means_h)
         best = None
-        for cid in sorted(changed):
-            i = work.index(cid)
+        for i in rows[np.argsort(work.ids[rows], kind="stable")]:  # by id: of equal pairs the first found merges
             d2m = two_sample_d2(Z, work.support, i)
+            np.minimum(bound, d2m, out=bound)  # exact distances tighten the partners' bounds too
+            bound[i] = d2m.min()
             if config.merge_min_age > 0:  # the paper's v_min^merge: the older of the two must be past it
                 ages = (demo_index + 1) - np.minimum(work.created, work.created[i])
                 d2m = np.where(ages > config.merge_min_age, d2m, np.inf)
@@ -430,7 +483,7 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
                                       1.0 / work.support + 1.0 / work.support[i], metric.logdet, h)
             j = int(np.argmin(score))
             if score[j] < 0.0 and (best is None or score[j] < best[0]):
-                best = (float(score[j]), i, j)
+                best = (float(score[j]), int(i), j)
         if best is None:
             break
         _, i, j = best
@@ -443,7 +496,6 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
         work.remove(work.index(gone.id))
         merged.append((keep.id, gone.id))
         history.append({"event": "merged", "into": keep.id, "absorbed": gone.id, "demo": demo_index})
-        changed = (changed - {gone.id}) | {keep.id}
 
     # 5. split a component whose halves have grown apart (all components: the scale may
     #    have shrunk under one that did not change)

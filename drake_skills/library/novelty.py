@@ -53,6 +53,10 @@ class NoveltyRule(Protocol):
         each pair, ``inflate`` ``1/s_i + 1/s_j`` and ``logdet`` that of ``Sigma``.
         """
 
+    def merge_limit(self, support: np.ndarray, dof: int) -> float:
+        """A two-sample distance at or beyond which no pair of components with these supports (K,) merges
+        (``inf`` if the form gives none): pairs whose distance is known to lie beyond it are not scored."""
+
     def splits(self, mahalanobis_sq: np.ndarray, dof: int) -> np.ndarray:
         """Per component: do its two sub-clusters this far apart (two-sample distance) make two components?"""
 
@@ -96,6 +100,14 @@ class Chi2Rule:
         threshold = chi2_ppf(self.merge_quantile, int(dof)) / np.asarray(support, float) ** self.consolidation
         return np.asarray(mahalanobis_sq) / threshold - 1.0
 
+    def merge_limit(self, support, dof) -> float:
+        # a pair's threshold is q / s^beta with s the larger of its two supports, one of these
+        s = np.asarray(support, float)
+        if not s.size:
+            return 0.0
+        return float(chi2_ppf(self.merge_quantile, int(dof)) * max(s.min() ** -self.consolidation,
+                                                                   s.max() ** -self.consolidation))
+
     def splits(self, mahalanobis_sq, dof) -> np.ndarray:
         return np.asarray(mahalanobis_sq) > chi2_ppf(self.split_quantile, int(dof))
 
@@ -117,6 +129,9 @@ class LogLikRule:
         logp = -0.5 * (dof * _LOG_2PI + logdet + dof * np.log(inflate) + np.asarray(mahalanobis_sq))
         threshold = self.log_T_merge + self.consolidation * np.log(np.asarray(support, float))
         return threshold - logp  # not exp(): clipped, pairs deep inside the threshold all tied
+
+    def merge_limit(self, support, dof) -> float:
+        return float("inf")  # the threshold moves with logdet and both supports: score every pair
 
     def splits(self, mahalanobis_sq, dof) -> np.ndarray:
         return np.asarray(mahalanobis_sq) > chi2_ppf(self.split_quantile, int(dof))

@@ -180,13 +180,25 @@ def test_a_young_component_does_not_stop_the_merge_check_of_the_others():
     assert u.created == (8,) and u.merged[0] == (0, 8)
 
 
-def test_an_unchanged_pair_is_not_checked():
-    """A and B are within the merge threshold of each other but the demonstration leaves both alone (it creates
-    a far third component): only pairs with a changed component are checked, as Algorithm 1 checks after an
-    update."""
+def test_an_unchanged_pair_within_the_threshold_merges():
+    """A and B are within the merge threshold of each other and the demonstration leaves both alone (it creates
+    a far third component): every pair is checked, as Algorithm 1 checks every component past its merge age,
+    because the learned scale moves under components that did not change (a skill shown in a row fragments
+    while the scale is its prior, and its fragments never change again)."""
     e = ls.unit(np.random.default_rng(3), H)
     far = 30.0 * e
     lib, demo, _, _ = _setup([(0, far, 2.0, 9), (1, far + np.sqrt(0.3 * THR_MERGE) * ls.unit(
+        np.random.default_rng(4), H), 2.0, 9)])
+    u = lib.partial_fit(demo)
+    assert u.created == (2,) and u.merged == ((0, 1),)
+    assert [c.id for c in lib.components] == [0, 2] and [c.age for c in lib.components] == [10, 1]
+
+
+def test_an_unchanged_pair_beyond_the_threshold_stays_apart():
+    """The same, with A and B at 1.05 of the merge threshold: both stay."""
+    e = ls.unit(np.random.default_rng(3), H)
+    far = 30.0 * e
+    lib, demo, _, _ = _setup([(0, far, 2.0, 9), (1, far + np.sqrt(1.05 * THR_MERGE) * ls.unit(
         np.random.default_rng(4), H), 2.0, 9)])
     u = lib.partial_fit(demo)
     assert u.created == (2,) and u.merged == ()
@@ -205,13 +217,15 @@ def test_a_component_updated_by_the_demonstration_is_checked_against_the_others(
 
 
 def test_the_merged_component_is_checked_again():
-    """After absorbing the new component, A has changed and is checked against B, which it then absorbs too."""
+    """The closest pair merges first (A and B: |dz|^2 / (1/4 + 1) = 12.8, against A and the new component at half
+    the threshold); the merged A has changed and is checked against the new component, which it then absorbs
+    too."""
     e1, e2 = np.eye(H)[0], np.eye(H)[1]
     lib, demo, _, _ = _setup([(0, np.sqrt(0.5 * THR_MERGE * 1.25) * e1, 4.0, 9),
                               (1, np.sqrt(0.5 * THR_MERGE * 1.25) * e1 + 4.0 * e2, 1.0, 9)])
     u = lib.partial_fit(demo)
     assert u.created == (2,)
-    assert u.merged == ((0, 2), (0, 1))
+    assert u.merged == ((0, 1), (0, 2))
     assert [c.id for c in lib.components] == [0]
     assert lib.components[0].support == pytest.approx(6.0, abs=1e-12)
 
@@ -255,3 +269,32 @@ def test_loglik_merge_of_an_updated_component_uses_both_supports(offset, merges)
     u = lib.partial_fit(demo)
     assert u.updated == (0,) and u.responsibilities[1] == 0.0
     assert bool(u.merged) is merges
+
+
+def test_distance_shrink_bounds_how_far_any_squared_distance_can_shrink():
+    """For random pairs of covariances (near and far apart) and random vectors: |x|^2_new >= f |x|^2_old, and f is
+    within a factor h of the exact smallest generalized eigenvalue (tight, 1 +- 1e-12, when the metric is the
+    same); no old metric gives 0."""
+    from drake_skills.library.algorithm import Metric, distance_shrink
+
+    rng = np.random.default_rng(0)
+    h = 7
+    assert distance_shrink(None, Metric.of(np.eye(h))) == 0.0
+    for step in (1e-3, 0.1, 1.0):
+        for _ in range(20):
+            A = rng.normal(size=(h, h))
+            old = A @ A.T + h * np.eye(h)
+            B = rng.normal(size=(h, h)) * step
+            new = old + B @ B.T - step * np.diag(rng.uniform(0, 1, h))
+            new = 0.5 * (new + new.T) + 1e-3 * np.eye(h)
+            m_old, m_new = Metric.of(old), Metric.of(new)
+            f = distance_shrink(m_old.inv_chol, m_new)
+            X = rng.normal(size=(200, h))
+            d_old = np.einsum("ij,ij->i", m_old.whiten(X), m_old.whiten(X))
+            d_new = np.einsum("ij,ij->i", m_new.whiten(X), m_new.whiten(X))
+            assert np.all(d_new >= f * d_old)
+            exact = np.linalg.eigvalsh(np.linalg.solve(m_new.chol, m_old.chol) @ np.linalg.solve(
+                m_new.chol, m_old.chol).T).min()
+            assert exact / h <= f <= exact * (1 + 1e-12)
+    m = Metric.of(old)
+    assert distance_shrink(m.inv_chol, m) == pytest.approx(1.0, abs=2e-9)

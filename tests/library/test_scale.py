@@ -264,3 +264,63 @@ def test_the_pruning_bound_lies_below_the_exact_fit_statistic_of_every_component
         pruned.append(1.0 - keep.mean())
     if data == "synthetic":
         assert np.mean(pruned) > 0.8, pruned
+
+
+def _unchanged_merges(update) -> int:
+    """Merges in one update of two components that neither the demonstration nor an earlier merge touched."""
+    touched, n = set(update.created) | set(update.updated), 0
+    for a, b in update.merged:
+        n += a not in touched and b not in touched
+        touched |= {a, b}
+    return n
+
+
+def test_fragments_of_skills_shown_in_a_row_merge_later_as_the_brute_force_reference(tmp_path):
+    """6 wide synthetic skills (scatter 0.6), 6 demonstrations each in a row: a skill fragments while the scale is
+    its prior, and fragments that no longer change merge once the scale has widened. Every update agrees with the
+    reference that scores every pair; a library saved and loaded after the first skill (its merge bounds rebuilt) goes
+    on alike."""
+    rng = np.random.default_rng(0)
+    bank = skill_bank(6, rng)
+    demos = [bank.demo(int(k), rng, scatter=0.6) for k in np.repeat(np.arange(6), 6)]
+    lib, ref = _learn_both(demos[:5])  # the first skill, in fragments
+    lib.save(tmp_path / "first.npz")
+    loaded = SkillLibrary.load(tmp_path / "first.npz")
+    unchanged = 0
+    for d in demos[5:]:
+        w, path = lib.encode(d), lib.path_length(d.human)
+        y = lib.human_samples(d.human)
+        h = lib.n_human
+        fit = lib.config.basis_human.phi_uniform(y.shape[0]) @ w[:h].reshape(d.dim_human, -1).T
+        expect = ref.partial_fit(w, d.duration, path, float(np.mean((y - fit) ** 2)))
+        got, again = lib.partial_fit(d), loaded.partial_fit(d)
+        for key in ("created", "updated", "merged", "split", "deleted"):
+            assert getattr(got, key) == expect[key] == getattr(again, key), key
+        unchanged += _unchanged_merges(got)
+    _assert_same_state(lib, ref)
+    _assert_same_state(loaded, ref)
+    assert unchanged >= 1  # the case this test is about happened
+
+
+def test_the_merge_bound_lies_below_every_components_distance_to_its_nearest_other():
+    """After each update of a stream with merges and splits (wide prior, letters) and of a row-order stream: the
+    carried bound of every component is at most its exact two-sample distance to the nearest other under the
+    metric the bound refers to (tolerance 1e-9 relative)."""
+    from drake_skills.library.algorithm import two_sample_d2
+
+    rng = np.random.default_rng(2)
+    bank = skill_bank(5, rng)
+    demos = [bank.demo(int(k), rng, scatter=0.8) for k in np.repeat(np.arange(5), 5)]
+    checked = 0
+    for cfg in (LibraryConfig(), LibraryConfig(prior_scale=0.6)):
+        lib = SkillLibrary(cfg)
+        for d in demos:
+            lib.partial_fit(d)
+            comps = lib._components
+            if len(comps) < 2 or comps.bound_ref is None:
+                continue
+            Z = comps.means_h @ comps.bound_ref.T
+            exact = np.array([two_sample_d2(Z, comps.support, i).min() for i in range(len(comps))])
+            assert np.all(comps.merge_bound <= exact * (1 + 1e-9)), (comps.merge_bound, exact)
+            checked += int(np.sum(comps.merge_bound > 0))
+    assert checked > 20  # bounds were carried, not only reset to 0
