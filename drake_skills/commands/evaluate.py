@@ -72,6 +72,9 @@ def register(sub) -> None:
                    help="human columns: the hand/wrist (6:9, default) or the whole arm (shoulder, elbow, hand: 0:9)")
     q.add_argument("--orders", type=int, default=None,
                    help="random orders of the training interactions (default 20, --quick: 2)")
+    q.add_argument("--teaching", choices=("random", "row"), default="random",
+                   help="how each order teaches: interleaved (random, default) or task by task (row: every "
+                        "interaction of one task, then the next, as a person shows a robot one skill at a time)")
     q.add_argument("--robot-units", default="rad",
                    help="units of the file's robot columns, for the response tables (default rad: joint angles; "
                         "e.g. m for a second person's arm)")
@@ -113,7 +116,7 @@ def run_interaction(args: argparse.Namespace) -> int:
         raise FileNotFoundError(f"interactions file '{args.data}' does not exist (give --data PATH)")
     orders = args.orders if args.orders is not None else (2 if args.quick else 20)
     kw = dict(data=str(args.data), columns=args.columns, orders=orders, rate_hz=args.rate, seed=args.seed,
-              library=_library(args), robot_units=args.robot_units)
+              library=_library(args), robot_units=args.robot_units, teaching=args.teaching)
     if args.quick:
         kw.update(fractions=(0.1, 0.5, 1.0))
     rep = evaluate_interaction(InteractionSettings(**kw), workers=args.workers, progress=not args.no_progress)

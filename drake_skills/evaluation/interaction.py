@@ -53,6 +53,8 @@ STREAM_INTERACTION = 7
 #: estimation, 4 real handover tasks, leave-one-out), by observed fraction (issue 12).
 IPROMPS_WRIST = {0.1: 0.647, 0.3: 0.735, 0.5: 0.662}
 OUTCOMES = ("correct", "wrong", "undecided", "unknown")
+#: Teaching orders: interleaved, or task by task.
+TEACHING = ("random", "row")
 
 
 @dataclass
@@ -65,6 +67,9 @@ class InteractionSettings:
     columns: str = "hand"
     #: Random orders of the training interactions.
     orders: int = 20
+    #: How each order teaches them: "random" (interleaved) or "row" (task by task, as a person
+    #: shows a robot one skill several times before the next; tasks and repetitions in random order).
+    teaching: str = "random"
     #: True observed fractions of the path for the anticipation table.
     fractions: tuple[float, ...] = tuple(np.round(np.arange(1, 11) / 10, 2).tolist())
     #: Samples (evenly spaced in time) on which the robot response error is measured.
@@ -82,6 +87,8 @@ class InteractionSettings:
     def __post_init__(self):
         if self.columns not in ("hand", "arm"):
             raise ValueError(f"InteractionSettings.columns must be 'hand' or 'arm', got {self.columns!r}")
+        if self.teaching not in TEACHING:
+            raise ValueError(f"InteractionSettings.teaching must be one of {TEACHING}, got {self.teaching!r}")
         for name, lo in (("orders", 1), ("n_steps", 2)):
             v = getattr(self, name)
             if isinstance(v, bool) or int(v) != v or v < lo:
@@ -279,6 +286,19 @@ def _rms(a, b) -> float:
     return float(np.sqrt(np.mean((np.asarray(a) - np.asarray(b)) ** 2)))
 
 
+def teaching_order(tasks, rng, teaching: str = "random") -> list[int]:
+    """Indices of demonstrations with labels ``tasks`` in a random order: interleaved (``"random"``), or task by
+    task (``"row"``: the tasks in the order a random permutation first names them, each task's demonstrations in
+    the order of that permutation)."""
+    perm = rng.permutation(len(tasks)).tolist()
+    if teaching == "random":
+        return perm
+    if teaching != "row":
+        raise ValueError(f"teaching must be one of {TEACHING}, got {teaching!r}")
+    first = list(dict.fromkeys(tasks[j] for j in perm))
+    return [j for t in first for j in perm if tasks[j] == t]
+
+
 def interaction_trial(ctx: InteractionContext, index: int) -> InteractionTrial:
     """One random order: learn the training split, then score the test split (see the module)."""
     from drake_skills.library.novelty import chi2_ppf
@@ -287,7 +307,7 @@ def interaction_trial(ctx: InteractionContext, index: int) -> InteractionTrial:
     cfg = replace(s.library, workspace=ctx.workspace)
     rng = trial_rng(s.seed, index, STREAM_INTERACTION)
     lab = LabeledLibrary(cfg)
-    for j in rng.permutation(len(ctx.train)):
+    for j in teaching_order([d.task for d in ctx.train], rng, s.teaching):
         lab.teach(ctx.train[j])
     lib = lab.library
     n_test, n_f = len(ctx.test), len(s.fractions)
@@ -401,7 +421,8 @@ def evaluate_interaction(settings: InteractionSettings, *, workers: int = 1, pro
     recognition = Table(["task", "test interactions", *OUTCOMES], rows,
                         caption=(f"Whole test interactions recognized (observed_fraction=1) by a library learned from "
                                  f"the {len(ctx.train)} training interactions, fractions over {s.orders} random "
-                                 f"orders x test interactions; human columns: {s.columns}."))
+                                 f"orders ({'task by task' if s.teaching == 'row' else 'interleaved'}) x test "
+                                 f"interactions; human columns: {s.columns}."))
     ks = sorted(set(K.tolist()))
     components = Table(["components", *map(str, ks), "mean"],
                        [["fraction of orders", *[float(np.mean(K == k)) for k in ks], float(K.mean())]],
