@@ -139,9 +139,11 @@ class Reference:
                     d2m = np.where(ages > cfg.merge_min_age, d2m, np.inf)
                 score = rule.merge_scores(d2m, np.maximum(support, support[i]), 1.0 / support + 1.0 / support[i],
                                           metric[2], h)
-                j = int(np.argmin(score))
-                if score[j] < 0.0 and (best is None or score[j] < best[0]):
-                    best = (float(score[j]), i, j)
+                ids = [c.id for c in items]
+                for j in np.flatnonzero(score < 0.0):  # every pair below the threshold; of equal scores the lowest ids
+                    key = (float(score[j]), min(ids[i], ids[j]), max(ids[i], ids[j]))
+                    if best is None or key < best[0]:
+                        best = (key, i, int(j))
             if best is None:
                 break
             _, i, j = best

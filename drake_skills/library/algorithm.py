@@ -20,9 +20,10 @@
 6. delete outliers by age and support.
 
 Every distance is computed on the whitened human means at once (one matrix product),
-so a step costs O(K h) arithmetic plus the work on the few changed components: a
-lower bound of every component's distance to its nearest other, carried from step to
-step (:func:`distance_shrink`), rules out the pairs that cannot merge.
+so a step costs O(K h) arithmetic plus the work on the few changed components: a bound
+per component, carried from step to step (:func:`distance_shrink`), with every pair's
+distance at least the smaller of its two components' bounds, rules out the pairs that
+cannot merge.
 Nothing here mutates its arguments; the library commits a :class:`Step` in one
 assignment, so a failed step leaves it as it was.
 """
@@ -98,8 +99,10 @@ class Components:
     path_length : array, shape (K,)
         Mean normalized path length of each component's demonstrations.
     merge_bound : array, shape (K,)
-        A lower bound of each component's two-sample distance to its nearest other component
-        under the metric of ``bound_ref`` (0: unknown). Derived data
+        Bounds of the two-sample distances under the metric of ``bound_ref``: every pair's
+        distance is at least the smaller of its two components' bounds (0: unknown; not each
+        component's distance to its nearest other: after a split, a half may lie nearer to a
+        component than that component's bound, but the half's own bound is 0). Derived data
         that only lets :func:`fold_in` skip merge checks that cannot succeed; never stored.
     bound_ref : array, shape (h, h), or None
         Inverse Cholesky factor of the gating covariance ``merge_bound`` holds under (None: no bound).
@@ -221,7 +224,7 @@ class _Work:
 
     @property
     def merge_bound(self) -> np.ndarray:
-        """Writable: each row's lower bound of the distance to its nearest other (0 once the row changed)."""
+        """Writable: the rows' merge bounds (see :class:`Components`; 0 once the row changed)."""
         return self._bound[:self.n]
 
     def _buffers(self) -> tuple:
@@ -232,7 +235,7 @@ class _Work:
         self.items[i] = c
         for buf, row in zip(self._buffers(), _rows(c, self.h)):
             buf[i] = row
-        self._bound[i] = 0.0  # a changed component's nearest distance is unknown
+        self._bound[i] = 0.0  # a changed component's distances are unknown
 
     def append(self, c: ComponentModel) -> None:
         if self.n == self._means.shape[0]:
@@ -253,7 +256,7 @@ class _Work:
         self.n = n
 
     def index(self, cid: int) -> int:
-        hit = np.flatnonzero(self._ids[:self.n] == cid)
+        hit = np.flatnonzero(self.ids == cid)
         if not hit.size:
             raise KeyError(cid)
         return int(hit[0])
@@ -457,22 +460,23 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
     #    checks every component (past its merge age), not only those the update changed: the learned
     #    scale moves under all of them and can bring two that did not change within the threshold (a
     #    skill shown several times in a row fragments while the scale is still its prior, and its
-    #    fragments never change again). Each component's lower bound of the distance to its nearest
-    #    other (work.merge_bound, carried from step to step and shrunk by as much as the metric can
-    #    have shrunk any distance since) leaves out those whose nearest other is out of reach; the
-    #    result is that of scoring every pair.
+    #    fragments never change again). work.merge_bound, carried from step to step and shrunk by as
+    #    much as the metric can have shrunk any distance since, keeps every pair's distance at least
+    #    the smaller of its two components' bounds, so the rows of the components whose bound is within
+    #    the merge limit find every pair that can merge; the result is that of scoring every pair.
     while len(work.items) > 1:
         metric = metric_of(scale)
         bound = work.merge_bound
         if work.bound_ref is not metric.inv_chol:
             bound *= distance_shrink(work.bound_ref, metric)
             work.bound_ref = metric.inv_chol
-        rows = np.flatnonzero(bound < rule.merge_limit(work.support, h))
+        rows = np.flatnonzero(~(bound >= rule.merge_limit(work.support, metric.logdet, h)))  # NaN: scored
         if not rows.size:
             break
         Z = metric.whiten(work.means_h)
+        ids = work.ids
         best = None
-        for i in rows[np.argsort(work.ids[rows], kind="stable")]:  # by id: of equal pairs the first found merges
+        for i in rows:
             d2m = two_sample_d2(Z, work.support, i)
             np.minimum(bound, d2m, out=bound)  # exact distances tighten the partners' bounds too
             bound[i] = d2m.min()
@@ -482,8 +486,13 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
             score = rule.merge_scores(d2m, np.maximum(work.support, work.support[i]),
                                       1.0 / work.support + 1.0 / work.support[i], metric.logdet, h)
             j = int(np.argmin(score))
-            if score[j] < 0.0 and (best is None or score[j] < best[0]):
-                best = (float(score[j]), int(i), j)
+            tied = np.flatnonzero(score == score[j])
+            if tied.size > 1:
+                j = int(tied[np.argmin(ids[tied])])
+            # the same key whichever of the two rows finds the pair: of equal scores the pair of lowest ids merges
+            key = (float(score[j]), min(int(ids[i]), int(ids[j])), max(int(ids[i]), int(ids[j])))
+            if key[0] < 0.0 and (best is None or key < best[0]):
+                best = (key, int(i), j)
         if best is None:
             break
         _, i, j = best

@@ -53,9 +53,10 @@ class NoveltyRule(Protocol):
         each pair, ``inflate`` ``1/s_i + 1/s_j`` and ``logdet`` that of ``Sigma``.
         """
 
-    def merge_limit(self, support: np.ndarray, dof: int) -> float:
+    def merge_limit(self, support: np.ndarray, logdet: float, dof: int) -> float:
         """A two-sample distance at or beyond which no pair of components with these supports (K,) merges
-        (``inf`` if the form gives none): pairs whose distance is known to lie beyond it are not scored."""
+        under a covariance of log-determinant ``logdet``: pairs whose distance is known to lie beyond it are
+        not scored."""
 
     def splits(self, mahalanobis_sq: np.ndarray, dof: int) -> np.ndarray:
         """Per component: do its two sub-clusters this far apart (two-sample distance) make two components?"""
@@ -100,13 +101,10 @@ class Chi2Rule:
         threshold = chi2_ppf(self.merge_quantile, int(dof)) / np.asarray(support, float) ** self.consolidation
         return np.asarray(mahalanobis_sq) / threshold - 1.0
 
-    def merge_limit(self, support, dof) -> float:
-        # a pair's threshold is q / s^beta with s the larger of its two supports, one of these
-        s = np.asarray(support, float)
-        if not s.size:
-            return 0.0
-        return float(chi2_ppf(self.merge_quantile, int(dof)) * max(s.min() ** -self.consolidation,
-                                                                   s.max() ** -self.consolidation))
+    def merge_limit(self, support, logdet, dof) -> float:
+        # a pair's threshold is q / s^beta with s the larger of its two supports, at least the smallest
+        # (beta >= 0, LibraryConfig checks it)
+        return float(chi2_ppf(self.merge_quantile, int(dof)) / float(np.min(support)) ** self.consolidation)
 
     def splits(self, mahalanobis_sq, dof) -> np.ndarray:
         return np.asarray(mahalanobis_sq) > chi2_ppf(self.split_quantile, int(dof))
@@ -130,8 +128,12 @@ class LogLikRule:
         threshold = self.log_T_merge + self.consolidation * np.log(np.asarray(support, float))
         return threshold - logp  # not exp(): clipped, pairs deep inside the threshold all tied
 
-    def merge_limit(self, support, dof) -> float:
-        return float("inf")  # the threshold moves with logdet and both supports: score every pair
+    def merge_limit(self, support, logdet, dof) -> float:
+        # merge iff d2 < -2 (log T_merge + beta log s) - dof log 2 pi - logdet - dof log(1/s_i + 1/s_j): largest
+        # for s (the pair's larger support) at the smallest support (beta >= 0) and both supports at the largest
+        s = np.asarray(support, float)
+        return float(-2.0 * (self.log_T_merge + self.consolidation * np.log(s.min())) - dof * _LOG_2PI - logdet
+                     - dof * np.log(2.0 / s.max()))
 
     def splits(self, mahalanobis_sq, dof) -> np.ndarray:
         return np.asarray(mahalanobis_sq) > chi2_ppf(self.split_quantile, int(dof))

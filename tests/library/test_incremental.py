@@ -632,7 +632,7 @@ def test_the_novelty_rule_is_chosen_in_one_place_and_can_be_swapped():
         def merge_scores(self, mahalanobis_sq, support, inflate, logdet, dof):
             return np.full(len(mahalanobis_sq), np.inf)
 
-        def merge_limit(self, support, dof):
+        def merge_limit(self, support, logdet, dof):
             return 0.0
 
         def splits(self, mahalanobis_sq, dof):

@@ -298,3 +298,92 @@ def test_distance_shrink_bounds_how_far_any_squared_distance_can_shrink():
             assert exact / h <= f <= exact * (1 + 1e-12)
     m = Metric.of(old)
     assert distance_shrink(m.inv_chol, m) == pytest.approx(1.0, abs=2e-9)
+
+
+def test_a_young_unchanged_pair_merges_once_past_merge_min_age_in_a_later_step():
+    """A and B (age 1) lie at half the merge threshold; merge_min_age 3 holds them apart for two updates that only
+    touch a far component C; on the third they merge though neither changed (their bounds were carried, not
+    recomputed; a cold review's test)."""
+    far = 30.0 * ls.unit(np.random.default_rng(3), H)
+    lib, demo, _, _ = _setup([(0, far, 1.0, 1), (1, far + _offset(0.5 * THR_MERGE, 1.0, 1.0), 1.0, 1),
+                              (2, np.zeros(H), 4.0, 9)], merge_min_age=3)
+    merged = [lib.partial_fit(demo).merged for _ in range(3)]
+    assert merged == [(), (), ((0, 1),)], merged
+
+
+def test_with_consolidation_a_pair_of_small_supports_is_not_ruled_out_by_the_largest_supports_threshold():
+    """beta 0.5: A and B (support 1, threshold q) at half of q; C has support 16 (its threshold q/4). merge_min_age
+    keeps A and B apart for two updates of C; on the third they merge: the merge limit is the smallest support's
+    threshold, not the largest's (a cold review's test)."""
+    far = 30.0 * ls.unit(np.random.default_rng(3), H)
+    lib, demo, _, _ = _setup([(0, far, 1.0, 1), (1, far + _offset(0.5 * THR_MERGE, 1.0, 1.0), 1.0, 1),
+                              (2, np.zeros(H), 16.0, 9)], merge_min_age=3, consolidation=0.5)
+    merged = [lib.partial_fit(demo).merged for _ in range(3)]
+    assert merged == [(), (), ((0, 1),)], merged
+
+
+@pytest.mark.parametrize("beta", [0.0, 0.5])
+@pytest.mark.parametrize("novelty_test", ["chi2", "loglik"])
+def test_the_merge_limit_is_a_distance_no_pair_of_these_supports_merges_at(novelty_test, beta):
+    """Random supports (some below 1, as soft responsibilities leave them) and log-determinants: no pair of the
+    supports merges at the limit (sound), and it is tight: at 0.999 of it the pair it is computed for merges (chi2:
+    the smallest support; loglik: the smallest support's threshold with the largest support's inflation)."""
+    from drake_skills.library.novelty import novelty_rule
+
+    kw = dict(novelty_test="loglik", log_T_nov=1e3, log_T_merge=-40.0) if novelty_test == "loglik" else {}
+    rule = novelty_rule(LibraryConfig(consolidation=beta, **kw))
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        s = rng.uniform(0.3, 20.0, size=6)
+        logdet = float(rng.normal(0.0, 10.0))
+        limit = rule.merge_limit(s, logdet, H)
+        pairs = [(a, b) for a in range(6) for b in range(6) if a != b]
+        larger = np.array([max(s[a], s[b]) for a, b in pairs])
+        inflate = np.array([1 / s[a] + 1 / s[b] for a, b in pairs])
+        assert np.all(rule.merge_scores(np.full(len(pairs), limit), larger, inflate, logdet, H) >= -1e-9)
+        near = rule.merge_scores(np.array([0.999 * limit]), np.array([s.min()]), np.array([2.0 / s.max()]), logdet, H)
+        assert near[0] < 0.0
+
+
+def test_of_equal_merge_scores_the_pair_of_lowest_ids_merges_whichever_row_finds_it():
+    """A stale bound can leave a pair to be found only from its other component's row (here component 0's partner
+    is a split half, new in this update). Two pairs at distance 0 tie: the library merges the one of lowest ids, as
+    the reference that scores every pair, and a copy made by from_state after the first update (its bounds
+    rebuilt) goes on alike (a cold review's construction)."""
+    from brute_force import Reference
+    from drake_skills import SkillLibrary
+    from drake_skills.library.novelty import novelty_rule
+    from drake_skills.library.scale import Cluster
+    from drake_skills.library.state import ComponentState
+
+    cfg = LibraryConfig(**{**BASE, "merge_min_age": 2})
+    demo = synthetic_demo(0, np.random.default_rng(0), T=30, robot=False)
+    w = ls.encode(cfg, demo)
+    g = ls.library(cfg, [], dim_human=3, dim_robot=0).shared_covariance()[0, 0]
+    u = [ls.unit(np.random.default_rng(k), H) for k in range(10, 14)]
+    far_a = w + np.sqrt(g) * 40.0 * u[0]
+    s1 = Cluster(1.0, far_a - np.sqrt(g) * 20.0 * u[1], np.zeros((H, 0)), 2.0, 3.0)  # X's first half
+    s2 = Cluster(1.0, far_a, np.zeros((H, 0)), 2.0, 3.0)  # X's second half, exactly at A
+    X, _ = s1.pool(s2)
+    cd = w + np.sqrt(g) * 40.0 * u[2]
+    comps = [ls.component(0, far_a, age=9),  # A
+             ls.component(1, cd, age=1), ls.component(2, cd.copy(), age=1),  # C, D: identical, young
+             ComponentState(3, 9, X, (s1, s2)),  # X: splits in the first update
+             ls.component(4, w, support=4.0, age=9)]  # E: the demonstration updates it
+    lib = ls.library(cfg, comps, dim_human=3, dim_robot=0, n_seen=10)
+    ref = Reference(lib.config, novelty_rule(lib.config), H)
+    ref.items, ref.scale, ref.next_id, ref.n_seen = list(lib._components.items), lib._scale, 5, 10
+    path, y = lib.path_length(demo.human), lib.human_samples(demo.human)
+    fit = lib.config.basis_human.phi_uniform(y.shape[0]) @ w[:H].reshape(3, -1).T
+    res = float(np.mean((y - fit) ** 2))
+    merged = []
+    for step in range(2):
+        expect = ref.partial_fit(w, demo.duration, path, res)
+        got = lib.partial_fit(demo)
+        assert got.merged == expect["merged"] and got.split == expect["split"], step
+        merged.append(got.merged)
+        if step == 0:
+            copy = SkillLibrary.from_state(lib.state())
+        else:
+            assert copy.partial_fit(demo).merged == got.merged
+    assert merged == [(), ((0, 5), (1, 2))]  # the tie happened, with the split half (id 5) first

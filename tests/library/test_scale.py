@@ -302,25 +302,34 @@ def test_fragments_of_skills_shown_in_a_row_merge_later_as_the_brute_force_refer
     assert unchanged >= 1  # the case this test is about happened
 
 
-def test_the_merge_bound_lies_below_every_components_distance_to_its_nearest_other():
-    """After each update of a stream with merges and splits (wide prior, letters) and of a row-order stream: the
-    carried bound of every component is at most its exact two-sample distance to the nearest other under the
-    metric the bound refers to (tolerance 1e-9 relative)."""
+def test_every_pairs_distance_is_at_least_the_smaller_of_its_two_merge_bounds(letters):
+    """The invariant the merge loop's pruning rests on, after every update of two streams with merges and splits
+    (12 letters with a wide prior; wide synthetic skills in a row): for every pair, the exact two-sample distance
+    under the metric the bounds refer to is at least the smaller of the two bounds (tolerance 1e-9 relative). Not
+    each component's distance to its nearest other: after a split a half may lie nearer to a component than that
+    component's bound (the half's own bound is 0), and the test sees that happen."""
     from drake_skills.library.algorithm import two_sample_d2
 
+    demos, ws = letters
     rng = np.random.default_rng(2)
     bank = skill_bank(5, rng)
-    demos = [bank.demo(int(k), rng, scatter=0.8) for k in np.repeat(np.arange(5), 5)]
-    checked = 0
-    for cfg in (LibraryConfig(), LibraryConfig(prior_scale=0.6)):
+    streams = [(LibraryConfig(workspace=ws, prior_scale=0.8), [demos[j] for j in np.random.default_rng(0).permutation(
+                len(demos))]),
+               (LibraryConfig(), [bank.demo(int(k), rng, scatter=0.8) for k in np.repeat(np.arange(5), 5)])]
+    carried = splits = nearer_than_own_bound = 0
+    for cfg, stream in streams:
         lib = SkillLibrary(cfg)
-        for d in demos:
-            lib.partial_fit(d)
+        for d in stream:
+            splits += len(lib.partial_fit(d).split)
             comps = lib._components
             if len(comps) < 2 or comps.bound_ref is None:
                 continue
             Z = comps.means_h @ comps.bound_ref.T
-            exact = np.array([two_sample_d2(Z, comps.support, i).min() for i in range(len(comps))])
-            assert np.all(comps.merge_bound <= exact * (1 + 1e-9)), (comps.merge_bound, exact)
-            checked += int(np.sum(comps.merge_bound > 0))
-    assert checked > 20  # bounds were carried, not only reset to 0
+            D = np.array([two_sample_d2(Z, comps.support, i) for i in range(len(comps))])  # inf on the diagonal
+            b = comps.merge_bound
+            assert np.all(D * (1 + 1e-9) >= np.minimum(b[:, None], b[None, :])), (b, D)
+            carried += int(np.sum(b > 0))
+            nearer_than_own_bound += int(np.sum(D.min(axis=1) * (1 + 1e-9) < b))
+    assert carried > 50 and splits >= 1  # bounds were carried through splits, not only reset to 0
+    assert nearer_than_own_bound >= 1  # the weaker invariant is the one that holds
+
