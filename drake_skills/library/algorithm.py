@@ -193,7 +193,7 @@ class _Work:
         self._sub_support = _grown(comps.sub_support, cap)
         self._ids = _grown(comps.id_array, cap)
         self._paths = _grown(comps.path_length, cap)
-        self._bound = _grown(comps.merge_bound if comps.merge_bound.shape[0] == K else np.zeros(K), cap)
+        self._bound = _grown(comps.merge_bound, cap)
         self.bound_ref = comps.bound_ref
         self.n = K
 
