@@ -192,7 +192,9 @@ class Reference:
         return {k: tuple(v) if isinstance(v, list) else v for k, v in out.items()}
 
     # ------------------------------------------------------------- recognition
-    def _decide(self, logp, d2, dof, phases, has_robot, shared_cov):
+    def _decide(self, logp, d2, dof, phases, has_robot, shared_cov, shares=None, records=None):
+        """``records``: the library's records of beginnings by component id, ``{id: (tested, missed)}`` (the
+        reference learns from weights alone, so it cannot keep them); with ``shares`` (K,), a beginning."""
         cfg = self.cfg
         support = self._support()
         fits = ~self.rule.novel(logp, d2, dof)
@@ -207,8 +209,22 @@ class Reference:
             status, comp = "skill", ids[best]
         else:
             status, comp = "undecided", None
+        blind = []
+        if status == "skill" and shares is not None and records:
+            F = [0.1, 0.2, 0.3, 0.4]
+            for j, c in enumerate(self.items):
+                tested, missed = records[c.id]
+                rate = [m / t if t > 0 else 0.0 for t, m in zip(tested, missed)]
+                if j == best or shares[j] > 0.45 or np.interp(shares[j], F, rate) < 0.5:
+                    continue
+                dof_j = float(np.broadcast_to(dof, (len(self.items),))[j])
+                if d2[j] <= 16.0 * chi2_ppf(cfg.novelty_quantile, dof_j) and \
+                        not self._same(best, np.eye(len(self.items), dtype=bool)[j], has_robot, shared_cov)[j]:
+                    blind.append(c.id)
+            if blind:
+                status, comp = "undecided", None
         return dict(component=comp, ids=ids, responsibilities=resp, log_likelihoods=logp, mahalanobis_sq=d2,
-                    dof=dof, status=status, phases=phases, posterior=post)
+                    dof=dof, status=status, phases=phases, posterior=post, blind=tuple(blind))
 
     def _same(self, best, candidates, has_robot, shared_cov):
         h = self.h
@@ -231,7 +247,7 @@ class Reference:
     def _noise(self):
         return observation_noise(self.scale, self.cfg.observation_noise)
 
-    def recognize_fixed(self, y, observed_fraction, has_robot, shared_cov) -> dict:
+    def recognize_fixed(self, y, observed_fraction, has_robot, shared_cov, records=None) -> dict:
         cfg, h = self.cfg, self.h
         metric = _metric(self.scale, h, cfg)
         K = len(self.items)
@@ -245,19 +261,21 @@ class Reference:
         for i, c in enumerate(self.items):
             logp[i], d2[i], dof[i] = prefix_statistics(U @ c.mean[:h], U @ metric[0] @ U.T * (1.0 + 1.0 / c.support),
                                                        Phi_o, y, self._noise())
-        return self._decide(logp, d2, dof, np.full(K, observed_fraction), has_robot, shared_cov)
+        return self._decide(logp, d2, dof, np.full(K, observed_fraction), has_robot, shared_cov,
+                            np.full(K, observed_fraction), records)
 
-    def recognize_prefix(self, ys, length, has_robot, shared_cov) -> dict:
+    def recognize_prefix(self, ys, length, has_robot, shared_cov, records=None) -> dict:
         """``ys``: the observed path resampled as the library resamples it; ``length``: its path length."""
         cfg, h = self.cfg, self.h
         metric = _metric(self.scale, h, cfg)
         grid = np.array(PHASE_GRID)
         K = len(self.items)
-        logp, d2, dof, phases = np.empty(K), np.empty(K), np.empty(K), np.empty(K)
+        logp, d2, dof, phases, shares = np.empty(K), np.empty(K), np.empty(K), np.empty(K), np.empty(K)
         m = ys.shape[0]
         U = unshrink(cfg, h)
         for i, c in enumerate(self.items):
-            g = min(max(length / max(c.cluster.path_length, 1e-12), grid[0]), 1.0)
+            shares[i] = length / max(c.cluster.path_length, 1e-12)
+            g = min(max(shares[i], grid[0]), 1.0)
             band = [f for f in grid if g / PHASE_BAND - 1e-12 <= f <= min(g * PHASE_BAND, 1.0) + 1e-12]
             nearest = float(grid[np.abs(grid - g).argmin()])
             if nearest not in band:
@@ -268,4 +286,4 @@ class Reference:
             j = int(np.argmax(lps))
             logp[i] = logsumexp(lps) - np.log(len(band))  # the phase marginalized over the band
             d2[i], dof[i], phases[i] = stats[j][1], stats[j][2], band[j]
-        return self._decide(logp, d2, dof, phases, has_robot, shared_cov)
+        return self._decide(logp, d2, dof, phases, has_robot, shared_cov, shares, records)

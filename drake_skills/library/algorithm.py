@@ -37,7 +37,7 @@ import numpy as np
 
 from drake_skills.library.novelty import NoveltyRule
 from drake_skills.promp.gaussian import logsumexp
-from drake_skills.library.scale import Cluster, SharedScale, gating_covariance
+from drake_skills.library.scale import BEGINNING_FRACTIONS, Cluster, SharedScale, gating_covariance
 from drake_skills.library.views import Responsibilities
 
 _LOG_2PI = np.log(2.0 * np.pi)
@@ -123,6 +123,13 @@ class Components:
     def path_lengths(self) -> np.ndarray:
         """(K,) mean path lengths of the components' demonstrations."""
         return self.path_length
+
+    @cached_property
+    def beginnings(self) -> tuple[np.ndarray, np.ndarray]:
+        """The components' records of beginnings (``Cluster.tested``, ``Cluster.missed``), two arrays (K, B)."""
+        if not self.items:
+            return np.zeros((0, len(BEGINNING_FRACTIONS))), np.zeros((0, len(BEGINNING_FRACTIONS)))
+        return (np.stack([c.cluster.tested for c in self.items]), np.stack([c.cluster.missed for c in self.items]))
 
     @classmethod
     def of(cls, items: Sequence[ComponentModel], n_human: int) -> "Components":
@@ -378,7 +385,8 @@ def _new_component(cid: int, created: int, w, duration: float, path_length: floa
 
 
 def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: float, path_length: float, *,
-            n_human: int, config, rule: NoveltyRule, next_id: int, demo_index: int, fit_residual: float = 0.0) -> Step:
+            n_human: int, config, rule: NoveltyRule, next_id: int, demo_index: int, fit_residual: float = 0.0,
+            beginnings=None) -> Step:
     """Algorithm 1 for one demonstration with stacked weights ``w`` (d,) = ``[w_h; w_r]``.
 
     Parameters
@@ -402,6 +410,12 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
         Index of the demonstration in the stream; ages are counted from it.
     fit_residual : float
         Mean squared residual of the demonstration's human path around its basis fit.
+    beginnings : callable, optional
+        ``beginnings(k)`` -> (B,): whether component row ``k`` of ``comps`` rejects the
+        demonstration's beginnings at :data:`~drake_skills.library.scale.BEGINNING_FRACTIONS`
+        of its path (1, 0, or NaN: not tested), asked before the update of the component that
+        takes at least half of the demonstration, and added to its record of beginnings
+        (``Cluster.tested``, ``Cluster.missed``). None: no record.
     """
     h = n_human
     work = _Work(comps, h)
@@ -439,19 +453,21 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
         zw = metric.whiten(w[:h])
         for i in np.flatnonzero(lam >= UPDATED_RESPONSIBILITY):
             c, l = comps.items[i], float(lam[i])
-            cluster, g = c.cluster.add(w, l, duration, path_length)
+            # the record of beginnings: only the component the demonstration mostly joins
+            missed = beginnings(int(i)) if beginnings is not None and l >= 0.5 else None
+            cluster, g = c.cluster.add(w, l, duration, path_length, missed)
             scale = scale.with_scatter(g, +1.0, l)
             a, b = c.subclusters
             if b is None:
-                j, b = 1, Cluster.of_sample(w, duration, path_length, support=l)
+                j, b = 1, Cluster.of_sample(w, duration, path_length, support=l, missed=missed)
             else:
                 da = metric.whiten(a.mean[:h]) - zw
                 db = metric.whiten(b.mean[:h]) - zw
                 j = int(db @ db < da @ da)
                 if j == 0:
-                    a = a.add(w, l, duration, path_length)[0]
+                    a = a.add(w, l, duration, path_length, missed)[0]
                 else:
-                    b = b.add(w, l, duration, path_length)[0]
+                    b = b.add(w, l, duration, path_length, missed)[0]
             work.set(int(i), ComponentModel(c.id, c.created, cluster, (a, b)))
             updated.append(c.id)
             subs[c.id] = j

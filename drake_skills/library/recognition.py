@@ -30,9 +30,9 @@ from drake_skills.data.workspace import Workspace
 from drake_skills.library.algorithm import ComponentModel, gating_scores, responsibilities
 from drake_skills.library.gain import scale_correction
 from drake_skills.library.novelty import Chi2Rule, chi2_ppf
-from drake_skills.library.prefix import PHASE_GRID, phase_band, score_at_phase, score_prefix
+from drake_skills.library.prefix import PHASE_GRID, decompose_phases, phase_band, score_at_phase, score_prefix
 from drake_skills.library.prefix_bound import prefix_candidates
-from drake_skills.library.scale import cross_covariance, observation_noise
+from drake_skills.library.scale import BEGINNING_FRACTIONS, beginning_blind, cross_covariance, observation_noise
 from drake_skills.library.views import Recognition, UnknownSkillError
 from drake_skills.promp.basis import GaussianBasis, ridge_weights, trajectory_covariance
 from drake_skills.promp.interaction import condition_on_observations, conditioned_mean_shift
@@ -42,6 +42,12 @@ __all__ = ["PRUNE_MIN_COMPONENTS", "RecognitionMixin"]
 #: Above this many components, prefix recognition scores only the components a cheap
 #: bound does not rule out (:func:`~drake_skills.library.prefix_bound.prefix_candidates`).
 PRUNE_MIN_COMPONENTS = 16
+#: A component that misses its own beginnings (``scale.beginning_blind``) is not ruled out by a
+#: beginning whose prefix statistic is within this many of its thresholds (``d^2 / chi2_ppf``).
+#: Chosen on development data: the hand waves of the buetepage training split, whose own
+#: beginnings their components reject, gave 0.1-11.6; beginnings of other synthetic skills 5-450
+#: (median 120), so 16 keeps every one of the first and drops most of the second.
+BLIND_REACH = 16.0
 
 
 class RecognitionMixin:
@@ -93,8 +99,17 @@ class RecognitionMixin:
         z = np.zeros(0)
         return Recognition(None, (), z, z, z, dof, "unknown", z, z)
 
-    def _decide(self, logp, d2, dof, phases, scored: np.ndarray | None = None) -> Recognition:
-        """The answer from per-component statistics; ``scored``: the components scored (the others cannot fit)."""
+    def _decide(self, logp, d2, dof, phases, scored: np.ndarray | None = None,
+                shares: np.ndarray | None = None) -> Recognition:
+        """The answer from per-component statistics; ``scored``: the components scored (the others cannot fit).
+
+        ``shares`` (K,): for a beginning, the share of each component's path it covers. A
+        beginning that one skill explains is still "undecided" while a component that would
+        answer differently misses most of its own demonstrations' beginnings at its share
+        (its record of beginnings; :func:`~drake_skills.library.scale.beginning_blind`) and
+        the beginning lies within :data:`BLIND_REACH` of its thresholds: its test cannot rule
+        it out (``Recognition.blind`` names it).
+        """
         comps = self._components
         if scored is None:
             fits = ~self._rule.novel(logp, d2, dof)
@@ -112,7 +127,19 @@ class RecognitionMixin:
             status, comp = "skill", ids[best]
         else:
             status, comp = "undecided", None
-        return Recognition(comp, ids, resp, logp, d2, dof, status, phases, post)
+        blind = ()
+        if status == "skill" and shares is not None and isinstance(self._rule, Chi2Rule):
+            mask = beginning_blind(*comps.beginnings, shares)
+            mask[best] = False
+            if mask.any():
+                k = np.flatnonzero(mask)
+                ratio = d2[k] / chi2_ppf(self.config.novelty_quantile, np.broadcast_to(dof, mask.shape)[k])
+                mask[k] = ratio <= BLIND_REACH
+            if mask.any():
+                mask &= ~self._same_response(best, mask)
+            if mask.any():
+                status, comp, blind = "undecided", None, tuple(ids[i] for i in np.flatnonzero(mask))
+        return Recognition(comp, ids, resp, logp, d2, dof, status, phases, post, blind)
 
     def _same_response(self, best: int, candidates: np.ndarray) -> np.ndarray:
         """Which candidates answer like component ``best`` (a mask, ``best`` included).
@@ -163,7 +190,8 @@ class RecognitionMixin:
         pm = self._prefix_model()
         logp, d2, dof = score_at_phase(y, observed_fraction, pm.means_h, 1.0 + 1.0 / comps.support, pm.chol,
                                        cfg.basis_human, self._noise(), self._prefix_cache())
-        return self._decide(logp, d2, dof, np.full(len(comps), observed_fraction))
+        shares = np.full(len(comps), observed_fraction)
+        return self._decide(logp, d2, dof, shares, shares=shares)
 
     def _recognize_prefix(self, path: "_Path") -> Recognition:
         """Recognition with the phase estimated per component (see :meth:`recognize`)."""
@@ -182,11 +210,12 @@ class RecognitionMixin:
         if len(comps) > PRUNE_MIN_COMPONENTS and isinstance(self._rule, Chi2Rule):
             keep = prefix_candidates(ys, PHASE_GRID, band, pm.means_h, inflate, pm.chol, cfg.basis_human, noise,
                                      cfg.novelty_quantile, self._prefix_cache())
+            keep |= beginning_blind(*comps.beginnings, guess)  # they may not be ruled out (see _decide)
             idx = np.flatnonzero(keep)
         if idx is None or idx.size == len(comps):
             sc = score_prefix(ys, guess, pm.means_h, inflate, pm.chol, cfg.basis_human, noise,
                               self._prefix_cache(), band)
-            return self._decide(sc.log_likelihoods, sc.mahalanobis_sq, sc.dof, sc.phases)
+            return self._decide(sc.log_likelihoods, sc.mahalanobis_sq, sc.dof, sc.phases, shares=guess)
         # the components ruled out cannot explain the samples: log-likelihood -inf, distance inf
         K = len(comps)
         logp, d2 = np.full(K, -np.inf), np.full(K, np.inf)
@@ -195,7 +224,7 @@ class RecognitionMixin:
             sc = score_prefix(ys, guess[idx], pm.means_h[idx], inflate[idx], pm.chol, cfg.basis_human, noise,
                               self._prefix_cache(), band[idx])
             logp[idx], d2[idx], dof[idx], phases[idx] = sc.log_likelihoods, sc.mahalanobis_sq, sc.dof, sc.phases
-        return self._decide(logp, d2, dof, phases, scored=idx)
+        return self._decide(logp, d2, dof, phases, scored=idx, shares=guess)
 
     def predict_robot(self, human, observed_fraction: float | None = None, *, workspace: Workspace | None = None,
                       component: int | None = None, n_steps: int | None = None, normalized: bool = False):
@@ -355,6 +384,44 @@ class RecognitionMixin:
                           self._prefix_cache())
         return float(sc.phases[0])
 
+    def _beginnings_missed(self, path: "_Path", k: int) -> np.ndarray:
+        """Whether component row ``k`` rejects the beginnings of ``path`` (B,): 1 or 0, NaN where too short to test.
+
+        The beginning at each of :data:`~drake_skills.library.scale.BEGINNING_FRACTIONS` of the
+        path (its vertices cut at that arc length) is tested as :meth:`recognize` tests a
+        beginning without a fraction: the most likely phase of the band around the component's
+        path-length guess, the prefix test of the novelty rule there (the phase matters: a hand
+        wave's beginning fits its component at some phase of the band, but not at the one its
+        likelihood picks, and that is what recognition sees). Where recognition resamples a
+        beginning to ``fraction n_samples`` points, all four are resampled to the count of the
+        second (20 of 100), so that one batched eigendecomposition per update serves them.
+        ``partial_fit`` asks this of the component a demonstration joins, before it does (its
+        record of beginnings).
+        """
+        cfg = self.config
+        comps = self._components
+        pm = self._prefix_model()
+        mean_h, inflate = pm.means_h[[k]], np.array([1.0 + 1.0 / comps.support[k]])
+        F = BEGINNING_FRACTIONS
+        m = _prefix_samples(cfg.n_samples, F[1])
+        subs = [path.cut(f * path.length) for f in F]
+        done = [b for b, sub in enumerate(subs) if sub is not None]
+        out = np.full(len(F), np.nan)
+        if not done:
+            return out
+        guess = np.array([subs[b].length for b in done]) / max(float(comps.path_length[k]), 1e-12)
+        bands = phase_band(guess)
+        ys = [subs[b].resample(m) for b in done]
+        noise, cache = self._noise(), self._prefix_cache()
+        # every phase the four bands ask for, decomposed in one batch (score_prefix reads them from the cache)
+        decompose_phases(np.array(PHASE_GRID)[bands.any(axis=0)], m, pm.chol, cfg.basis_human, int(self.dim_human_),
+                         cache)
+        for i, b in enumerate(done):
+            sc = score_prefix(ys[i], guess[i:i + 1], mean_h, inflate, pm.chol, cfg.basis_human, noise, cache,
+                              bands[i:i + 1])
+            out[b] = float(self._rule.novel(sc.log_likelihoods, sc.mahalanobis_sq, sc.dof)[0])
+        return out
+
 
 @lru_cache(maxsize=16)
 def _unshrink(basis: GaussianBasis, n_samples: int, ridge: float) -> np.ndarray:
@@ -405,6 +472,16 @@ class _Path:
     @property
     def length(self) -> float:
         return float(self.s[-1])
+
+    def cut(self, length: float) -> "_Path | None":
+        """The path's first ``length`` of arc length (its last vertex interpolated); None if that holds one vertex."""
+        s, v = self.s, self.vertices
+        i = min(int(np.searchsorted(s, length, side="left")), s.shape[0] - 1)
+        if i < 1 or not length > 0:
+            return None
+        t = (length - s[i - 1]) / (s[i] - s[i - 1]) if s[i] > s[i - 1] else 1.0
+        vertices = np.vstack([v[:i], v[i - 1] + min(t, 1.0) * (v[i] - v[i - 1])])
+        return _Path(vertices, vertices, np.append(s[:i], min(length, s[i])))
 
     def resample(self, n: int) -> np.ndarray:
         """``n`` samples equally spaced along the path (:func:`~drake_skills.promp.preprocessing.resample_by_arc_length`)."""

@@ -31,9 +31,25 @@ Everything here is a pure function of immutable values.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+
+#: Shares of a demonstration's own path at which its beginning is tested, before it joins a
+#: component, against that component's prefix model (``Cluster.tested``,
+#: ``Cluster.missed``; :meth:`~drake_skills.library.recognition.RecognitionMixin._beginnings_missed`).
+BEGINNING_FRACTIONS = (0.1, 0.2, 0.3, 0.4)
+#: A component's record of beginnings stops growing once every share has this much tested weight:
+#: enough to tell a miss rate of one half from none (the blind components of the real interactions
+#: miss 60-100 %), and the test's cost in ``partial_fit`` then stops too.
+RECORD_TESTS = 10.0
+#: A component that misses at least this share of its own beginnings (at a share of its path)
+#: cannot be ruled out from a beginning there (:func:`beginning_blind`).
+BLIND_RATE = 0.5
+
+
+def _no_beginnings() -> np.ndarray:
+    return np.zeros(len(BEGINNING_FRACTIONS))
 
 #: Relative floor added to the diagonal of the shared covariance (keeps it positive
 #: definite before any spread has been seen, e.g. after one demonstration).
@@ -55,6 +71,15 @@ class Cluster:
         Mean duration of its demonstrations (s).
     path_length : float
         Mean length of their normalized human paths (arc length, workspace units).
+    tested : array, shape (B,)
+        The record of its beginnings: the weight of the member demonstrations whose
+        beginning at ``BEGINNING_FRACTIONS[b]`` of their path was tested against this
+        cluster's component before they joined it (a component's first demonstration was
+        not: there was nothing to test it against).
+    missed : array, shape (B,)
+        Of that weight, the part whose beginning the component's prefix test rejected
+        (``0 <= missed <= tested``). A component that misses its own beginnings cannot be
+        ruled out from a beginning (:func:`beginning_blind`).
     """
 
     support: float
@@ -62,20 +87,28 @@ class Cluster:
     factor: np.ndarray
     duration: float
     path_length: float
+    tested: np.ndarray = field(default_factory=_no_beginnings)
+    missed: np.ndarray = field(default_factory=_no_beginnings)
 
     @classmethod
-    def of_sample(cls, w: np.ndarray, duration: float, path_length: float, support: float = 1.0) -> "Cluster":
-        """One demonstration with weights ``w`` (d,)."""
+    def of_sample(cls, w: np.ndarray, duration: float, path_length: float, support: float = 1.0,
+                  missed: np.ndarray | None = None) -> "Cluster":
+        """One demonstration with weights ``w`` (d,) (and its beginnings' test, see :meth:`add`)."""
         w = np.array(w, dtype=float)
-        return cls(float(support), w, np.zeros((w.shape[0], 0)), float(duration), float(path_length))
+        tested, miss = _recorded(_no_beginnings(), _no_beginnings(), float(support), missed)
+        return cls(float(support), w, np.zeros((w.shape[0], 0)), float(duration), float(path_length), tested, miss)
 
     @property
     def scatter(self) -> np.ndarray:
         """S, shape (d, d)."""
         return self.factor @ self.factor.T
 
-    def add(self, w: np.ndarray, lam: float, duration: float, path_length: float) -> tuple["Cluster", np.ndarray]:
+    def add(self, w: np.ndarray, lam: float, duration: float, path_length: float,
+            missed: np.ndarray | None = None) -> tuple["Cluster", np.ndarray]:
         """The cluster with ``w`` added at weight ``lam`` (Eqs. 6-8 with the exact running moments).
+
+        ``missed`` (B,): whether the component's prefix test rejected the demonstration's
+        beginning at each of ``BEGINNING_FRACTIONS`` (1 or 0; NaN: not tested); None: none tested.
 
         Returns the new cluster and the scatter increment's factor column
         ``g`` (d,), with ``S_new = S + g g^T``.
@@ -98,7 +131,8 @@ class Cluster:
         factor = _compress(np.column_stack([self.factor, g]))
         dur = self.duration + gamma * (duration - self.duration)
         path = self.path_length + gamma * (path_length - self.path_length)
-        return Cluster(s, mean, factor, dur, path), g
+        tested, miss = _recorded(self.tested, self.missed, lam, missed)
+        return Cluster(s, mean, factor, dur, path, tested, miss), g
 
     def pool(self, other: "Cluster") -> tuple["Cluster", np.ndarray]:
         """The union of two clusters (moment matching; the corrected Eq. 11).
@@ -114,7 +148,40 @@ class Cluster:
         factor = _compress(np.column_stack([self.factor, other.factor, g]))
         dur = (sa * self.duration + sb * other.duration) / s
         path = (sa * self.path_length + sb * other.path_length) / s
-        return Cluster(s, mean, factor, dur, path), g
+        return Cluster(s, mean, factor, dur, path, self.tested + other.tested, self.missed + other.missed), g
+
+
+def beginning_blind(tested: np.ndarray, missed: np.ndarray, shares: np.ndarray) -> np.ndarray:
+    """Which components (K,) miss most of their own beginnings at ``shares`` (K,) of their path.
+
+    The records (K, B) (:attr:`Cluster.tested`, :attr:`Cluster.missed`) give the miss rate
+    ``missed / tested`` at each of the ``BEGINNING_FRACTIONS`` (0 where nothing was tested),
+    interpolated linearly between them (the first one's below it); at least
+    :data:`BLIND_RATE` is blind: the component's own prefix test rejects its own motion
+    there at least as often as not, so its rejection rules nothing out. A share past the
+    last fraction by more than half a step is never blind (not tested).
+    """
+    F = np.asarray(BEGINNING_FRACTIONS)
+    tested = np.asarray(tested, float)
+    rate = np.divide(np.asarray(missed, float), tested, out=np.zeros_like(tested), where=tested > 0)
+    shares = np.asarray(shares, float)
+    out = np.zeros(shares.shape[0], bool)
+    near = shares <= F[-1] + 0.5 * (F[-1] - F[-2])
+    for k in np.flatnonzero(near & (rate.max(axis=1) >= BLIND_RATE)):
+        out[k] = np.interp(shares[k], F, rate[k]) >= BLIND_RATE
+    return out
+
+
+def _recorded(tested: np.ndarray, missed: np.ndarray, lam: float, outcome) -> tuple[np.ndarray, np.ndarray]:
+    """The record with one demonstration's ``outcome`` (B,) (1 missed, 0 explained, NaN not tested) added at
+    weight ``lam``; ``outcome`` None adds nothing."""
+    if outcome is None:
+        return tested, missed
+    m = np.asarray(outcome, float)
+    if m.shape != tested.shape:
+        raise ValueError(f"a record of beginnings has shape {m.shape}, expected {tested.shape}")
+    ok = np.isfinite(m)
+    return tested + lam * ok, missed + lam * np.where(ok, np.clip(m, 0.0, 1.0), 0.0)
 
 
 def _compress(factor: np.ndarray) -> np.ndarray:

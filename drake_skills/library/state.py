@@ -14,7 +14,7 @@ import numpy as np
 
 from drake_skills.library.config import LibraryConfig
 from drake_skills.library.gain import ConditioningGain
-from drake_skills.library.scale import Cluster, SharedScale
+from drake_skills.library.scale import BEGINNING_FRACTIONS, Cluster, SharedScale
 
 
 @dataclass(frozen=True, eq=False)
@@ -76,6 +76,12 @@ def _check_cluster(cl, d: int, what: str, *, arrays: bool = True) -> None:
     if not (math.isfinite(cl.duration) and cl.duration >= 0 and math.isfinite(cl.path_length)
             and cl.path_length >= 0):
         raise ValueError(f"{what} has duration {cl.duration} and path length {cl.path_length}")
+    t, m = np.asarray(cl.tested), np.asarray(cl.missed)
+    B = len(BEGINNING_FRACTIONS)
+    if t.shape != (B,) or m.shape != (B,) or not (np.isfinite(t).all() and np.isfinite(m).all()) \
+            or (m < 0).any() or (m > t * (1 + 1e-9) + 1e-9).any():
+        raise ValueError(f"{what} has a bad record of beginnings (tested {t.tolist()}, missed {m.tolist()}): "
+                         f"{B} shares, 0 <= missed <= tested")
 
 
 @dataclass(frozen=True, eq=False)

@@ -12,8 +12,10 @@ Layout (schema version 3):
   null (optional: files written before it are read as null, unknown), "gain": null or
   {"count", "normal", "target"} (the fit of Eq. (13)'s gains, ``library.gain``; optional: files
   written before it read as null), "scale": {"n", "dof"}, "components":
-  [{"id", "age", "support", "duration", "path_length", "rank", "subclusters":
-  [{"support", "duration", "path_length", "rank"}, null or {...}]}, ...]}``;
+  [{"id", "age", "support", "duration", "path_length", "rank", "beginnings", "subclusters":
+  [{"support", "duration", "path_length", "rank", "beginnings"}, null or {...}]}, ...]}``
+  ("beginnings": ``{"tested": [B], "missed": [B]}``, the record of beginnings of
+  ``Cluster``; optional: files written before it read as no record);
 * ``means`` (K, d); ``factors`` (d, R): the components' scatter factors side by side
   (``rank`` columns each, in order); ``sub_means`` (K, 2, d) and ``sub_factors`` (d,
   R') the same for the sub-clusters (zeros for an empty one);
@@ -62,7 +64,7 @@ from drake_skills._lock import FileLock
 from drake_skills.library.config import RETIRED_FIELDS, LibraryConfig
 from drake_skills.library.gain import ConditioningGain
 from drake_skills.library.invariants import invariant_violations
-from drake_skills.library.scale import Cluster, SharedScale
+from drake_skills.library.scale import BEGINNING_FRACTIONS, Cluster, SharedScale
 from drake_skills.library.state import ComponentState, LibraryState
 
 log = logging.getLogger(__name__)
@@ -95,7 +97,16 @@ def library_path(path) -> Path:
 
 def _cluster_meta(cl: Cluster) -> dict:
     return {"support": cl.support, "duration": cl.duration, "path_length": cl.path_length,
-            "rank": int(cl.factor.shape[1])}
+            "rank": int(cl.factor.shape[1]), "beginnings": {"tested": [float(x) for x in cl.tested],
+                                                           "missed": [float(x) for x in cl.missed]}}
+
+
+def _beginnings(meta: dict) -> tuple[np.ndarray, np.ndarray]:
+    """A cluster's record of beginnings from its metadata (optional key: files written before it read as none)."""
+    b = meta.get("beginnings")
+    if b is None:
+        return np.zeros(len(BEGINNING_FRACTIONS)), np.zeros(len(BEGINNING_FRACTIONS))
+    return np.array(b["tested"], dtype=float), np.array(b["missed"], dtype=float)
 
 
 def save_state(state: LibraryState, path, *, generation: int = 1) -> Path:
@@ -433,7 +444,8 @@ def _state_of(meta: dict, version: int, arrays, where: str) -> LibraryState:
         for i, cm in enumerate(comps_meta):
             f = a["factors"][:, col:col + ranks[i]]
             col += ranks[i]
-            cluster = Cluster(float(cm["support"]), a["means"][i], f, float(cm["duration"]), float(cm["path_length"]))
+            cluster = Cluster(float(cm["support"]), a["means"][i], f, float(cm["duration"]), float(cm["path_length"]),
+                              *_beginnings(cm))
             subs = []
             if not isinstance(cm["subclusters"], list) or len(cm["subclusters"]) != 2:
                 raise ValueError(f"component {i} needs two sub-cluster entries")
@@ -445,7 +457,7 @@ def _state_of(meta: dict, version: int, arrays, where: str) -> LibraryState:
                 sf = a["sub_factors"][:, sub_col:sub_col + r]
                 sub_col += r
                 subs.append(Cluster(float(sm["support"]), a["sub_means"][i, j], sf, float(sm["duration"]),
-                                    float(sm["path_length"])))
+                                    float(sm["path_length"]), *_beginnings(sm)))
             comps.append(ComponentState(_int(cm["id"], f"component {i} id"), _int(cm["age"], f"component {i} age"),
                                         cluster, tuple(subs)))
         scale = SharedScale(_int(scale_meta["n"], "scale n"), a["total_mean"], a["total_m2"], a["pooled"],
