@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import logsumexp
 
+from drake_skills.library import recognition
 from drake_skills.library.algorithm import ComponentModel
 from drake_skills.library.novelty import chi2_ppf
 from drake_skills.library.scale import Cluster, SharedScale, gating_covariance, observation_noise
@@ -211,14 +212,14 @@ class Reference:
             status, comp = "undecided", None
         blind = []
         if status == "skill" and shares is not None and records:
-            F = [0.1, 0.2, 0.3, 0.4]
+            F = [0.1, 0.2]
             for j, c in enumerate(self.items):
                 tested, missed = records[c.id]
                 rate = [m / t if t > 0 else 0.0 for t, m in zip(tested, missed)]
-                if j == best or shares[j] > 0.45 or np.interp(shares[j], F, rate) < 0.5:
+                if j == best or shares[j] > 0.25 or np.interp(shares[j], F, rate) < 0.5:
                     continue
                 dof_j = float(np.broadcast_to(dof, (len(self.items),))[j])
-                if d2[j] <= 16.0 * chi2_ppf(cfg.novelty_quantile, dof_j) and \
+                if d2[j] <= recognition.BLIND_REACH * chi2_ppf(cfg.novelty_quantile, dof_j) and \
                         not self._same(best, np.eye(len(self.items), dtype=bool)[j], has_robot, shared_cov)[j]:
                     blind.append(c.id)
             if blind:

@@ -146,17 +146,6 @@ def score_phases(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarray
     return loglik, d2, dof
 
 
-def decompose_phases(phases, m: int, chol: np.ndarray, basis: GaussianBasis, D: int, cache: dict) -> None:
-    """Fill ``cache`` with the eigendecompositions :func:`score_phases` needs at ``phases`` for ``m`` samples (one batch).
-
-    Later calls at any subset of these phases (and this ``m`` and ``chol``) read them from the
-    cache instead of decomposing phase by phase.
-    """
-    phases = tuple(float(f) for f in phases)
-    _per_phase(cache, "gram", phases, int(m), lambda fs: _whitened_gram(_basis_terms(basis, fs, int(m))[1], chol, D))
-    fit_terms(basis, phases, int(m), chol, D, cache)
-
-
 def fit_statistic(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarray, chol: np.ndarray,
                   basis: GaussianBasis, noise_var: float, cache: dict | None = None):
     """The fit statistic ``d2`` of :func:`score_phases` and its degrees of freedom, arrays of shape (J, K).

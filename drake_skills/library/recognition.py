@@ -30,7 +30,7 @@ from drake_skills.data.workspace import Workspace
 from drake_skills.library.algorithm import ComponentModel, gating_scores, responsibilities
 from drake_skills.library.gain import scale_correction
 from drake_skills.library.novelty import Chi2Rule, chi2_ppf
-from drake_skills.library.prefix import PHASE_GRID, decompose_phases, phase_band, score_at_phase, score_prefix
+from drake_skills.library.prefix import PHASE_GRID, phase_band, score_at_phase, score_phases, score_prefix
 from drake_skills.library.prefix_bound import prefix_candidates
 from drake_skills.library.scale import BEGINNING_FRACTIONS, beginning_blind, cross_covariance, observation_noise
 from drake_skills.library.views import Recognition, UnknownSkillError
@@ -393,8 +393,9 @@ class RecognitionMixin:
         path-length guess, the prefix test of the novelty rule there (the phase matters: a hand
         wave's beginning fits its component at some phase of the band, but not at the one its
         likelihood picks, and that is what recognition sees). Where recognition resamples a
-        beginning to ``fraction n_samples`` points, all four are resampled to the count of the
-        second (20 of 100), so that one batched eigendecomposition per update serves them.
+        beginning to ``fraction n_samples`` points, all are resampled to the count of the last
+        (20 of 100) and scored at the union of their bands, so that one batched
+        eigendecomposition per update serves them.
         ``partial_fit`` asks this of the component a demonstration joins, before it does (its
         record of beginnings).
         """
@@ -403,7 +404,7 @@ class RecognitionMixin:
         pm = self._prefix_model()
         mean_h, inflate = pm.means_h[[k]], np.array([1.0 + 1.0 / comps.support[k]])
         F = BEGINNING_FRACTIONS
-        m = _prefix_samples(cfg.n_samples, F[1])
+        m = _prefix_samples(cfg.n_samples, F[-1])
         subs = [path.cut(f * path.length) for f in F]
         done = [b for b, sub in enumerate(subs) if sub is not None]
         out = np.full(len(F), np.nan)
@@ -413,13 +414,12 @@ class RecognitionMixin:
         bands = phase_band(guess)
         ys = [subs[b].resample(m) for b in done]
         noise, cache = self._noise(), self._prefix_cache()
-        # every phase the four bands ask for, decomposed in one batch (score_prefix reads them from the cache)
-        decompose_phases(np.array(PHASE_GRID)[bands.any(axis=0)], m, pm.chol, cfg.basis_human, int(self.dim_human_),
-                         cache)
+        cols = np.flatnonzero(bands.any(axis=0))
+        phases = tuple(np.array(PHASE_GRID)[cols])   # every phase of the bands: one batch, then a cache hit
         for i, b in enumerate(done):
-            sc = score_prefix(ys[i], guess[i:i + 1], mean_h, inflate, pm.chol, cfg.basis_human, noise, cache,
-                              bands[i:i + 1])
-            out[b] = float(self._rule.novel(sc.log_likelihoods, sc.mahalanobis_sq, sc.dof)[0])
+            ll, d2, dof = score_phases(ys[i], phases, mean_h, inflate, pm.chol, cfg.basis_human, noise, cache)
+            j = int(np.argmax(np.where(bands[i, cols], ll[:, 0], -np.inf)))   # score_prefix's phase of the band
+            out[b] = float(self._rule.novel(ll[j], d2[j], dof[j])[0])
         return out
 
 

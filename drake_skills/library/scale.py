@@ -38,7 +38,7 @@ import numpy as np
 #: Shares of a demonstration's own path at which its beginning is tested, before it joins a
 #: component, against that component's prefix model (``Cluster.tested``,
 #: ``Cluster.missed``; :meth:`~drake_skills.library.recognition.RecognitionMixin._beginnings_missed`).
-BEGINNING_FRACTIONS = (0.1, 0.2, 0.3, 0.4)
+BEGINNING_FRACTIONS = (0.1, 0.2)
 #: A component's record of beginnings stops growing once every share has this much tested weight:
 #: enough to tell a miss rate of one half from none (the blind components of the real interactions
 #: miss 60-100 %), and the test's cost in ``partial_fit`` then stops too.

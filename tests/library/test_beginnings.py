@@ -1,6 +1,6 @@
 """The record of beginnings: a component that misses its own beginnings cannot be ruled out from one.
 
-Each demonstration that joins a component is first tested, at ``BEGINNING_FRACTIONS`` of its
+Each demonstration that joins a component is first tested, at ``BEGINNING_FRACTIONS`` (10 and 20 %) of its
 own path, against that component's prefix model (``Cluster.tested`` / ``Cluster.missed``). A
 beginning that one skill explains is "undecided" while another skill, answering differently,
 misses most of its own beginnings at the share the beginning covers of its path and lies within
@@ -26,16 +26,21 @@ B = len(BEGINNING_FRACTIONS)
 
 
 def test_cluster_record_adds_each_outcome_at_its_weight_skips_untested_shares_and_pools_by_sum():
+    assert BEGINNING_FRACTIONS == (0.1, 0.2)
     w = np.zeros(3)
     a = Cluster.of_sample(w, 1.0, 2.0)
     assert np.array_equal(a.tested, np.zeros(B)) and np.array_equal(a.missed, np.zeros(B))
-    a, _ = a.add(w + 1, 0.75, 1.0, 2.0, np.array([1.0, 0.0, np.nan, 1.0]))
-    np.testing.assert_allclose(a.tested, [0.75, 0.75, 0.0, 0.75], rtol=0, atol=1e-15)
-    np.testing.assert_allclose(a.missed, [0.75, 0.0, 0.0, 0.75], rtol=0, atol=1e-15)
+    a, _ = a.add(w + 1, 0.75, 1.0, 2.0, np.array([1.0, np.nan]))
+    np.testing.assert_allclose(a.tested, [0.75, 0.0], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(a.missed, [0.75, 0.0], rtol=0, atol=1e-15)
+    a, _ = a.add(w, 0.5, 1.0, 2.0, np.array([0.0, 1.0]))
+    np.testing.assert_allclose(a.tested, [1.25, 0.5], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(a.missed, [0.75, 0.5], rtol=0, atol=1e-15)
     a, _ = a.add(w, 1.0, 1.0, 2.0)                      # no outcome: the record stays
-    np.testing.assert_allclose(a.missed, [0.75, 0.0, 0.0, 0.75], rtol=0, atol=1e-15)
-    b = Cluster.of_sample(w, 1.0, 2.0, support=0.5, missed=np.array([0.0, 1.0, 1.0, np.nan]))
-    np.testing.assert_allclose(b.tested, [0.5, 0.5, 0.5, 0.0], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(a.missed, [0.75, 0.5], rtol=0, atol=1e-15)
+    b = Cluster.of_sample(w, 1.0, 2.0, support=0.5, missed=np.array([0.0, 1.0]))
+    np.testing.assert_allclose(b.tested, [0.5, 0.5], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(b.missed, [0.0, 0.5], rtol=0, atol=1e-15)
     p, _ = a.pool(b)
     np.testing.assert_allclose(p.tested, a.tested + b.tested, rtol=0, atol=1e-15)
     np.testing.assert_allclose(p.missed, a.missed + b.missed, rtol=0, atol=1e-15)
@@ -44,16 +49,17 @@ def test_cluster_record_adds_each_outcome_at_its_weight_skips_untested_shares_an
 
 
 def test_beginning_blind_interpolates_the_miss_rate_and_is_never_blind_past_the_tested_shares():
-    tested = np.array([[2.0, 2.0, 2.0, 2.0], [2.0, 2.0, 2.0, 2.0], [0.0, 0.0, 0.0, 0.0]])
-    missed = np.array([[2.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, 0.0]])
+    tested = np.array([[2.0, 2.0], [2.0, 4.0], [0.0, 0.0], [4.0, 0.0]])
+    missed = np.array([[2.0, 0.0], [0.0, 2.0], [0.0, 0.0], [2.0, 0.0]])
     assert BLIND_RATE == 0.5
-    # row 0: rates 1, 0.5, 0, 0 -> blind up to share 0.2 (0.5 at 0.2 counts), not at 0.25 (0.25)
-    assert beginning_blind(tested, missed, np.array([0.05, 0.0, 0.0])).tolist() == [True, False, False]
-    assert beginning_blind(tested, missed, np.array([0.2, 0.4, 0.1])).tolist() == [True, True, False]
-    assert beginning_blind(tested, missed, np.array([0.25, 0.35, 0.1])).tolist() == [False, False, False]  # 0.25
+    # row 0: rates 1, 0 -> blind up to share 0.15 (0.5 there counts), not beyond; row 1: 0, 0.5 -> from 0.2 to 0.25;
+    # row 2: nothing tested; row 3: rate 0.5 at 0.1, nothing tested at 0.2 (rate 0) -> blind up to 0.1
+    assert beginning_blind(tested, missed, np.array([0.05, 0.05, 0.05, 0.05])).tolist() == [True, False, False, True]
+    assert beginning_blind(tested, missed, np.array([0.15, 0.15, 0.1, 0.1])).tolist() == [True, False, False, True]
+    assert beginning_blind(tested, missed, np.array([0.16, 0.2, 0.2, 0.12])).tolist() == [False, True, False, False]
+    assert beginning_blind(tested, missed, np.array([0.3, 0.25, 0.3, 0.3])).tolist() == [False, True, False, False]
     # past the last fraction by more than half a step: not tested, never blind
-    assert beginning_blind(tested, missed, np.array([0.5, 0.46, 0.9])).tolist() == [False, False, False]
-    assert beginning_blind(tested, missed, np.array([0.0, 0.45, 0.0])).tolist() == [True, True, False]
+    assert beginning_blind(tested, missed, np.array([0.0, 0.26, 0.0, 0.0])).tolist() == [True, False, False, True]
 
 
 def test_a_bad_record_of_beginnings_is_refused_by_the_state_check():
@@ -95,13 +101,13 @@ def test_a_library_file_keeps_the_record_of_beginnings(tmp_path):
         for k in range(2):
             lib.partial_fit(bank.demo(k, rng))
     blind = Cluster(*(getattr(lib._components.items[0].cluster, f) for f in
-                      ("support", "mean", "factor", "duration", "path_length")), np.full(B, 2.0), np.array([2.0, 1, 0, 0]))
+                      ("support", "mean", "factor", "duration", "path_length")), np.full(B, 2.0), np.array([2.0, 1.0]))
     c = lib._components.items[0]
     lib._components = Components.of([ComponentModel(c.id, c.created, blind, (blind, None))]
                                     + list(lib._components.items[1:]), lib.n_human)
     lib.save(tmp_path / "lib.npz")
     back = SkillLibrary.load(tmp_path / "lib.npz")
-    np.testing.assert_array_equal(back._components.items[0].cluster.missed, [2.0, 1, 0, 0])
+    np.testing.assert_array_equal(back._components.items[0].cluster.missed, [2.0, 1.0])
     np.testing.assert_array_equal(back._components.items[0].subclusters[0].tested, np.full(B, 2.0))
 
 
@@ -131,11 +137,11 @@ def test_a_beginning_one_skill_explains_is_undecided_while_a_blind_skill_cannot_
     k0 = lib.recognize(bank.demo(0, rng).human, observed_fraction=1.0).component
     row1 = 1 - lib._components.index(k0)
     h = bank.demo(0, rng).human
-    part = h[: len(h) // 4]
+    part = h[: len(h) // 8]
     rec = lib.recognize(part)
     assert rec.status == "skill" and rec.component == k0 and rec.blind == ()
     share = lib._normalized(part).length / lib._components.path_length[row1]
-    assert share < 0.45, share                                # a share the record covers
+    assert share < 0.25, share                                # a share the record covers
     blind_lib = _with_record(lib, row1, 1.0)
     monkeypatch.setattr(recognition, "BLIND_REACH", np.inf)
     rec = blind_lib.recognize(part)
@@ -147,6 +153,15 @@ def test_a_beginning_one_skill_explains_is_undecided_while_a_blind_skill_cannot_
     # the skill's own record blocks nothing for itself
     assert _with_record(lib, 1 - row1, 1.0).recognize(part).component == k0
     monkeypatch.setattr(recognition, "BLIND_REACH", 0.0)
+    assert blind_lib.recognize(part).status == "skill"
+    # the reach is a multiple of the blind component's own threshold, inclusive
+    from drake_skills.library.novelty import chi2_ppf
+    r = blind_lib.recognize(part)
+    ratio = r.mahalanobis_sq[row1] / chi2_ppf(lib.config.novelty_quantile, np.broadcast_to(r.dof, (2,))[row1])
+    assert ratio > 1.0                                        # skill 1 does not explain it
+    monkeypatch.setattr(recognition, "BLIND_REACH", ratio)
+    assert blind_lib.recognize(part).status == "undecided"
+    monkeypatch.setattr(recognition, "BLIND_REACH", ratio * (1 - 1e-9))
     assert blind_lib.recognize(part).status == "skill"
 
 

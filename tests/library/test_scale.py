@@ -155,6 +155,24 @@ def test_recognize_answers_as_the_brute_force_reference(synthetic_library, monke
     assert {"skill", "unknown"} <= statuses
 
 
+def test_beginnings_blind_components_make_undecided_as_in_the_reference(synthetic_library, monkeypatch):
+    """The record of beginnings, read as the reference reads it: with every blind component in reach (BLIND_REACH
+    1e12: far, but finite, so that a component the pruning bound ruled out, at distance inf, is not in reach unless
+    scored) some beginnings of the 40 synthetic skills are undecided for a blind one, pruned (above
+    PRUNE_MIN_COMPONENTS) or not; every answer, and the blind components it names, are the reference's."""
+    bank, lib, ref, rng = synthetic_library
+    monkeypatch.setattr(recognition, "BLIND_REACH", 1e12)
+    blind = 0
+    for prune in (True, False):
+        monkeypatch.setattr(recognition, "PRUNE_MIN_COMPONENTS", 16 if prune else 10 ** 9)
+        for human in _probes(bank, np.random.default_rng(7), n=10):
+            _, prefix = _reference_answers(lib, ref, human)
+            rec = lib.recognize(human)
+            _assert_same_answer(rec, prefix, exact_arrays=False)
+            blind += bool(rec.blind)
+    assert blind >= 2, blind
+
+
 def test_pruned_prefix_recognition_answers_as_brute_force_and_scores_few_components(synthetic_library):
     """40 components (above PRUNE_MIN_COMPONENTS): the bound rules out most, and every answer is the reference's."""
     bank, lib, ref, rng = synthetic_library
