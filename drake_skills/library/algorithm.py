@@ -98,6 +98,8 @@ class Components:
         ``items[k].id``.
     path_length : array, shape (K,)
         Mean normalized path length of each component's demonstrations.
+    tested, missed : arrays, shape (K, B)
+        The components' records of beginnings (``Cluster.tested``, ``Cluster.missed``).
     merge_bound : array, shape (K,)
         Bounds of the two-sample distances under the metric of ``bound_ref``: every pair's
         distance is at least the smaller of its two components' bounds (0: unknown; not each
@@ -116,6 +118,8 @@ class Components:
     sub_support: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     id_array: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     path_length: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    tested: np.ndarray = field(default_factory=lambda: np.zeros((0, len(BEGINNING_FRACTIONS))))
+    missed: np.ndarray = field(default_factory=lambda: np.zeros((0, len(BEGINNING_FRACTIONS))))
     merge_bound: np.ndarray = field(default_factory=lambda: np.zeros(0))
     bound_ref: np.ndarray | None = None
 
@@ -124,26 +128,28 @@ class Components:
         """(K,) mean path lengths of the components' demonstrations."""
         return self.path_length
 
-    @cached_property
+    @property
     def beginnings(self) -> tuple[np.ndarray, np.ndarray]:
         """The components' records of beginnings (``Cluster.tested``, ``Cluster.missed``), two arrays (K, B)."""
-        if not self.items:
-            return np.zeros((0, len(BEGINNING_FRACTIONS))), np.zeros((0, len(BEGINNING_FRACTIONS)))
-        return (np.stack([c.cluster.tested for c in self.items]), np.stack([c.cluster.missed for c in self.items]))
+        return self.tested, self.missed
 
     @classmethod
     def of(cls, items: Sequence[ComponentModel], n_human: int) -> "Components":
         items = tuple(items)
         rows = [_rows(c, n_human) for c in items]
         K = len(items)
+        B = len(BEGINNING_FRACTIONS)
         if K:
-            means, support, created, sub_means, sub_support, ids, paths = (np.array(x) for x in zip(*rows))
+            means, support, created, sub_means, sub_support, ids, paths, tested, missed = (np.array(x) for x in
+                                                                                          zip(*rows))
         else:
             means, support, created = np.zeros((0, n_human)), np.zeros(0), np.zeros(0, dtype=np.int64)
             sub_means, sub_support, ids, paths = np.zeros((0, 2, n_human)), np.zeros((0, 2)), np.zeros(0), np.zeros(0)
+            tested, missed = np.zeros((0, B)), np.zeros((0, B))
         return cls._frozen(items, means.reshape(K, n_human), support.astype(float), created.astype(np.int64),
                            sub_means.reshape(K, 2, n_human), sub_support.reshape(K, 2), ids.astype(np.int64),
-                           paths.astype(float), np.zeros(K))
+                           paths.astype(float), tested.reshape(K, B).astype(float), missed.reshape(K, B).astype(float),
+                           np.zeros(K))
 
     @classmethod
     def _frozen(cls, items, *arrays, bound_ref: np.ndarray | None = None) -> "Components":
@@ -169,14 +175,16 @@ class Components:
 
 
 def _rows(c: ComponentModel, h: int):
-    """The stacked data of one component: mean, support, created, sub-cluster means and supports, id, path length."""
+    """The stacked data of one component: mean, support, created, sub-cluster means and supports, id, path length,
+    record of beginnings."""
     a, b = c.subclusters
     sm = np.zeros((2, h))
     ss = np.zeros(2)
     sm[0], ss[0] = a.mean[:h], a.support
     if b is not None:
         sm[1], ss[1] = b.mean[:h], b.support
-    return c.cluster.mean[:h], c.cluster.support, c.created, sm, ss, c.id, c.cluster.path_length
+    return (c.cluster.mean[:h], c.cluster.support, c.created, sm, ss, c.id, c.cluster.path_length, c.cluster.tested,
+            c.cluster.missed)
 
 
 class _Work:
@@ -200,6 +208,8 @@ class _Work:
         self._sub_support = _grown(comps.sub_support, cap)
         self._ids = _grown(comps.id_array, cap)
         self._paths = _grown(comps.path_length, cap)
+        self._tested = _grown(comps.tested, cap)
+        self._missed = _grown(comps.missed, cap)
         self._bound = _grown(comps.merge_bound, cap)
         self.bound_ref = comps.bound_ref
         self.n = K
@@ -236,7 +246,7 @@ class _Work:
 
     def _buffers(self) -> tuple:
         return (self._means, self._support, self._created, self._sub_means, self._sub_support, self._ids,
-                self._paths, self._bound)
+                self._paths, self._tested, self._missed, self._bound)
 
     def set(self, i: int, c: ComponentModel) -> None:
         self.items[i] = c
@@ -248,7 +258,7 @@ class _Work:
         if self.n == self._means.shape[0]:
             cap = 2 * self.n + 4
             (self._means, self._support, self._created, self._sub_means, self._sub_support, self._ids,
-             self._paths, self._bound) = (_grown(a[:self.n], cap) for a in self._buffers())
+             self._paths, self._tested, self._missed, self._bound) = (_grown(a[:self.n], cap) for a in self._buffers())
         self.items.append(None)
         self.n += 1
         self.set(self.n - 1, c)
