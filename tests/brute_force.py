@@ -216,7 +216,7 @@ class Reference:
             for j, c in enumerate(self.items):
                 tested, missed = records[c.id]
                 rate = [m / t if t > 0 else 0.0 for t, m in zip(tested, missed)]
-                if j == best or shares[j] > 0.25 or np.interp(shares[j], F, rate) < 0.5:
+                if j == best or shares[j] > 0.25 or np.interp(shares[j], F, rate) <= 0.5:
                     continue
                 dof_j = float(np.broadcast_to(dof, (len(self.items),))[j])
                 if d2[j] <= recognition.BLIND_REACH * chi2_ppf(cfg.novelty_quantile, dof_j) and \
@@ -248,7 +248,8 @@ class Reference:
     def _noise(self):
         return observation_noise(self.scale, self.cfg.observation_noise)
 
-    def recognize_fixed(self, y, observed_fraction, has_robot, shared_cov, records=None) -> dict:
+    def recognize_fixed(self, y, observed_fraction, has_robot, shared_cov) -> dict:
+        """A beginning of a known fraction (or a whole motion): the record of beginnings plays no part."""
         cfg, h = self.cfg, self.h
         metric = _metric(self.scale, h, cfg)
         K = len(self.items)
@@ -262,8 +263,7 @@ class Reference:
         for i, c in enumerate(self.items):
             logp[i], d2[i], dof[i] = prefix_statistics(U @ c.mean[:h], U @ metric[0] @ U.T * (1.0 + 1.0 / c.support),
                                                        Phi_o, y, self._noise())
-        return self._decide(logp, d2, dof, np.full(K, observed_fraction), has_robot, shared_cov,
-                            np.full(K, observed_fraction), records)
+        return self._decide(logp, d2, dof, np.full(K, observed_fraction), has_robot, shared_cov)
 
     def recognize_prefix(self, ys, length, has_robot, shared_cov, records=None) -> dict:
         """``ys``: the observed path resampled as the library resamples it; ``length``: its path length."""

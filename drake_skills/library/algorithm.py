@@ -421,11 +421,12 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
     fit_residual : float
         Mean squared residual of the demonstration's human path around its basis fit.
     beginnings : callable, optional
-        ``beginnings(k)`` -> (B,): whether component row ``k`` of ``comps`` rejects the
+        ``beginnings(k)`` -> (B,) or None: whether component row ``k`` of ``comps`` rejects the
         demonstration's beginnings at :data:`~drake_skills.library.scale.BEGINNING_FRACTIONS`
-        of its path (1, 0, or NaN: not tested), asked before the update of the component that
-        takes at least half of the demonstration, and added to its record of beginnings
-        (``Cluster.tested``, ``Cluster.missed``). None: no record.
+        of its path (1, 0, or NaN: not tested; None: nothing tested, e.g. a full record), asked
+        before the update of the component that takes at least half of the demonstration, and
+        added to its record of beginnings (``Cluster.tested``, ``Cluster.missed``; its
+        sub-cluster's too). None: no record.
     """
     h = n_human
     work = _Work(comps, h)

@@ -79,7 +79,7 @@ def _check_cluster(cl, d: int, what: str, *, arrays: bool = True) -> None:
     t, m = np.asarray(cl.tested), np.asarray(cl.missed)
     B = len(BEGINNING_FRACTIONS)
     if t.shape != (B,) or m.shape != (B,) or not (np.isfinite(t).all() and np.isfinite(m).all()) \
-            or (m < 0).any() or (m > t * (1 + 1e-9) + 1e-9).any():
+            or (t < 0).any() or (m < 0).any() or (m > t * (1 + 1e-9) + 1e-9).any():
         raise ValueError(f"{what} has a bad record of beginnings (tested {t.tolist()}, missed {m.tolist()}): "
                          f"{B} shares, 0 <= missed <= tested")
 

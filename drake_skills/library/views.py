@@ -158,8 +158,10 @@ class Recognition:
     """Result of :meth:`SkillLibrary.recognize` (Eq. 12).
 
     ``status`` is "skill" (``component`` is its id), "undecided" (more than one skill
-    explains the motion and none is ``1 - decision_risk`` probable: wait for more of
-    it) or "unknown" (no skill explains it: ask for a demonstration).
+    explains the motion and none is ``1 - decision_risk`` probable, or, for a beginning
+    recognized without a fraction, a skill that would answer differently cannot be ruled
+    out because it misses its own beginnings there (``blind``): wait for more of it) or
+    "unknown" (no skill explains it: ask for a demonstration).
 
     A motion's beginning recognized without a fraction in a library of more than
     ``PRUNE_MIN_COMPONENTS`` (16) components is scored only against the components a
@@ -191,7 +193,8 @@ class Recognition:
     #: Ids of the components that could not be ruled out because they miss most of their own
     #: demonstrations' beginnings at the share of their path this beginning covers, and would
     #: answer differently from the best candidate: the reason a beginning that one skill explains
-    #: is "undecided" (empty for whole motions; see ``SkillLibrary.recognize``).
+    #: is "undecided" (empty for whole motions and beginnings of a given fraction; the record of
+    #: beginnings: ``Cluster.tested`` / ``Cluster.missed``, ``RecognitionMixin._decide``).
     blind: tuple[int, ...] = ()
 
     @property
