@@ -29,7 +29,7 @@ assignment, so a failed step leaves it as it was.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Mapping, Sequence
 
@@ -37,7 +37,7 @@ import numpy as np
 
 from drake_skills.library.novelty import NoveltyRule
 from drake_skills.promp.gaussian import logsumexp
-from drake_skills.library.scale import BEGINNING_FRACTIONS, Cluster, SharedScale, gating_covariance
+from drake_skills.library.scale import BEGINNING_FRACTIONS, RECORD_TESTS, Cluster, SharedScale, gating_covariance
 from drake_skills.library.views import Responsibilities
 
 _LOG_2PI = np.log(2.0 * np.pi)
@@ -389,8 +389,9 @@ class Step:
     history: tuple[dict, ...]
 
 
-def _new_component(cid: int, created: int, w, duration: float, path_length: float) -> ComponentModel:
-    cl = Cluster.of_sample(w, duration, path_length)
+def _new_component(cid: int, created: int, w, duration: float, path_length: float,
+                   pending: np.ndarray | None = None) -> ComponentModel:
+    cl = Cluster.of_sample(w, duration, path_length, pending=pending)
     return ComponentModel(cid, created, cl, (cl, None))
 
 
@@ -424,9 +425,11 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
         ``beginnings(k)`` -> (B,) or None: whether component row ``k`` of ``comps`` rejects the
         demonstration's beginnings at :data:`~drake_skills.library.scale.BEGINNING_FRACTIONS`
         of its path (1, 0, or NaN: not tested; None: nothing tested, e.g. a full record), asked
-        before the update of the component that takes at least half of the demonstration, and
+        before the update of the component that takes at least half of the demonstration (unless
+        its record holds ``RECORD_TESTS`` at every share), and
         added to its record of beginnings (``Cluster.tested``, ``Cluster.missed``; its
-        sub-cluster's too). None: no record.
+        sub-cluster's too); for a novel demonstration, of the nearest component, kept as the new
+        component's pending test (``Cluster.pending``, counted if it merges). None: no record.
     """
     h = n_human
     work = _Work(comps, h)
@@ -453,7 +456,9 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
         novel = not fits.any()
     # 3. update
     if novel:
-        work.append(_new_component(next_id, demo_index, w, duration, path_length))
+        # its beginnings against the nearest component: they join its record if it merges (Cluster.pending)
+        pending = beginnings(int(np.argmin(d2))) if beginnings is not None and len(comps.items) else None
+        work.append(_new_component(next_id, demo_index, w, duration, path_length, pending))
         created.append(next_id)
         history.append({"event": "created", "id": next_id, "demo": demo_index})
         next_id += 1
@@ -465,7 +470,8 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
         for i in np.flatnonzero(lam >= UPDATED_RESPONSIBILITY):
             c, l = comps.items[i], float(lam[i])
             # the record of beginnings: only the component the demonstration mostly joins
-            missed = beginnings(int(i)) if beginnings is not None and l >= 0.5 else None
+            full = c.cluster.tested.min() >= RECORD_TESTS   # a full record is not tested again
+            missed = beginnings(int(i)) if beginnings is not None and l >= 0.5 and not full else None
             cluster, g = c.cluster.add(w, l, duration, path_length, missed)
             scale = scale.with_scatter(g, +1.0, l)
             a, b = c.subclusters
@@ -527,7 +533,8 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
         keep, gone = (a, b) if (a.support, -a.id) >= (b.support, -b.id) else (b, a)
         pooled, g = keep.cluster.pool(gone.cluster)
         scale = scale.with_scatter(g, +1.0, 1.0)
-        new = ComponentModel(keep.id, min(keep.created, gone.created), pooled, (keep.cluster, gone.cluster))
+        halves = tuple(replace(c.cluster, pending=np.full_like(c.cluster.pending, np.nan)) for c in (keep, gone))
+        new = ComponentModel(keep.id, min(keep.created, gone.created), pooled, halves)  # pending tests counted once
         work.set(work.index(keep.id), new)
         work.remove(work.index(gone.id))
         merged.append((keep.id, gone.id))

@@ -72,7 +72,7 @@ from drake_skills.library.guards import UNITS_RANGE, data_warning, robot_units_e
 from drake_skills.library.novelty import Chi2Rule, novelty_rule
 from drake_skills.library.files import FileMixin
 from drake_skills.library.recognition import RecognitionMixin, _Path
-from drake_skills.library.scale import RECORD_TESTS, SharedScale, shared_covariance
+from drake_skills.library.scale import SharedScale, shared_covariance
 from drake_skills.library.state import ComponentState, LibraryState
 from drake_skills.library.storage import LibraryChangedError
 from drake_skills.library.views import (Component, DataWarning, Recognition, UnitsWarning, UnknownSkillError,
@@ -576,9 +576,8 @@ class SkillLibrary(RecognitionMixin, FileMixin):
         with np.errstate(over="ignore", invalid="ignore"):  # an overflowing update is refused below
             beginnings = None
             if len(comps) and isinstance(self._rule, Chi2Rule):
-                def beginnings(k):  # the record of beginnings (RecognitionMixin._beginnings_missed), until it is full
-                    full = comps.items[k].cluster.tested.min() >= RECORD_TESTS
-                    return None if full else self._beginnings_missed(normalized_path, k)
+                def beginnings(k):  # the record of beginnings (RecognitionMixin._beginnings_missed)
+                    return self._beginnings_missed(normalized_path, k)
             step = fold_in(comps, scale, w, demo.duration, path, n_human=h, config=self.config, rule=self._rule,
                            next_id=self._next_id, demo_index=n, fit_residual=fit_residual, beginnings=beginnings)
         _check_finite_step(step, w, where)

@@ -51,6 +51,10 @@ BLIND_RATE = 0.5
 def _no_beginnings() -> np.ndarray:
     return np.zeros(len(BEGINNING_FRACTIONS))
 
+
+def _no_pending() -> np.ndarray:
+    return np.full(len(BEGINNING_FRACTIONS), np.nan)
+
 #: Relative floor added to the diagonal of the shared covariance (keeps it positive
 #: definite before any spread has been seen, e.g. after one demonstration).
 _FLOOR = 1e-9
@@ -80,6 +84,12 @@ class Cluster:
         Of that weight, the part whose beginning the component's prefix test rejected
         (``0 <= missed <= tested``). A component that misses its own beginnings cannot be
         ruled out from a beginning (:func:`beginning_blind`).
+    pending : array, shape (B,)
+        The outcome (1 missed, 0 explained, NaN none) of the cluster's first demonstration's
+        beginnings tested, when it made a new component, against the component nearest to it:
+        not yet a test against its own skill, it joins the record when the cluster merges with
+        another (:meth:`pool`; a skill shown several times in a row fragments while the scale is
+        its prior, and its fragments' first demonstrations are otherwise never tested).
     """
 
     support: float
@@ -89,14 +99,20 @@ class Cluster:
     path_length: float
     tested: np.ndarray = field(default_factory=_no_beginnings)
     missed: np.ndarray = field(default_factory=_no_beginnings)
+    pending: np.ndarray = field(default_factory=_no_pending)
 
     @classmethod
     def of_sample(cls, w: np.ndarray, duration: float, path_length: float, support: float = 1.0,
-                  missed: np.ndarray | None = None) -> "Cluster":
-        """One demonstration with weights ``w`` (d,) (and its beginnings' test, see :meth:`add`)."""
+                  missed: np.ndarray | None = None, pending: np.ndarray | None = None) -> "Cluster":
+        """One demonstration with weights ``w`` (d,) (its beginnings' test, see :meth:`add`; ``pending``: see
+        the attribute)."""
         w = np.array(w, dtype=float)
         tested, miss = _recorded(_no_beginnings(), _no_beginnings(), float(support), missed)
-        return cls(float(support), w, np.zeros((w.shape[0], 0)), float(duration), float(path_length), tested, miss)
+        pend = _no_pending() if pending is None else np.array(pending, dtype=float)
+        if pend.shape != tested.shape:
+            raise ValueError(f"a pending test of beginnings has shape {pend.shape}, expected {tested.shape}")
+        return cls(float(support), w, np.zeros((w.shape[0], 0)), float(duration), float(path_length), tested, miss,
+                   pend)
 
     @property
     def scatter(self) -> np.ndarray:
@@ -132,7 +148,7 @@ class Cluster:
         dur = self.duration + gamma * (duration - self.duration)
         path = self.path_length + gamma * (path_length - self.path_length)
         tested, miss = _recorded(self.tested, self.missed, lam, missed)
-        return Cluster(s, mean, factor, dur, path, tested, miss), g
+        return Cluster(s, mean, factor, dur, path, tested, miss, self.pending), g
 
     def pool(self, other: "Cluster") -> tuple["Cluster", np.ndarray]:
         """The union of two clusters (moment matching; the corrected Eq. 11).
@@ -148,7 +164,10 @@ class Cluster:
         factor = _compress(np.column_stack([self.factor, other.factor, g]))
         dur = (sa * self.duration + sb * other.duration) / s
         path = (sa * self.path_length + sb * other.path_length) / s
-        return Cluster(s, mean, factor, dur, path, self.tested + other.tested, self.missed + other.missed), g
+        # each side's pending first test joins the record: the two are one skill now (weight 1: one demonstration)
+        tested, missed = _recorded(self.tested + other.tested, self.missed + other.missed, 1.0, self.pending)
+        tested, missed = _recorded(tested, missed, 1.0, other.pending)
+        return Cluster(s, mean, factor, dur, path, tested, missed), g
 
 
 def beginning_blind(tested: np.ndarray, missed: np.ndarray, shares: np.ndarray) -> np.ndarray:

@@ -82,6 +82,10 @@ def _check_cluster(cl, d: int, what: str, *, arrays: bool = True) -> None:
             or (t < 0).any() or (m < 0).any() or (m > t * (1 + 1e-9) + 1e-9).any():
         raise ValueError(f"{what} has a bad record of beginnings (tested {t.tolist()}, missed {m.tolist()}): "
                          f"{B} shares, 0 <= missed <= tested")
+    pend = np.asarray(cl.pending, float)
+    if pend.shape != (B,) or ((pend < 0) | (pend > 1)).any():
+        raise ValueError(f"{what} has a bad pending test of beginnings ({pend.tolist()}): {B} outcomes in [0, 1] "
+                         "or NaN")
 
 
 @dataclass(frozen=True, eq=False)

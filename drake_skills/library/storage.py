@@ -14,8 +14,9 @@ Layout (schema version 3):
   written before it read as null), "scale": {"n", "dof"}, "components":
   [{"id", "age", "support", "duration", "path_length", "rank", "beginnings", "subclusters":
   [{"support", "duration", "path_length", "rank", "beginnings"}, null or {...}]}, ...]}``
-  ("beginnings": ``{"tested": [B], "missed": [B]}``, the record of beginnings of
-  ``Cluster``; optional: files written before it read as no record);
+  ("beginnings": ``{"tested": [B], "missed": [B], "pending": [B]}``, the record of
+  beginnings of ``Cluster`` and its pending test, null where none; optional: files
+  written before it read as no record);
 * ``means`` (K, d); ``factors`` (d, R): the components' scatter factors side by side
   (``rank`` columns each, in order); ``sub_means`` (K, 2, d) and ``sub_factors`` (d,
   R') the same for the sub-clusters (zeros for an empty one);
@@ -98,15 +99,22 @@ def library_path(path) -> Path:
 def _cluster_meta(cl: Cluster) -> dict:
     return {"support": cl.support, "duration": cl.duration, "path_length": cl.path_length,
             "rank": int(cl.factor.shape[1]), "beginnings": {"tested": [float(x) for x in cl.tested],
-                                                           "missed": [float(x) for x in cl.missed]}}
+                                                           "missed": [float(x) for x in cl.missed],
+                                                           "pending": [None if not math.isfinite(x) else float(x)
+                                                                       for x in cl.pending]}}
 
 
-def _beginnings(meta: dict) -> tuple[np.ndarray, np.ndarray]:
-    """A cluster's record of beginnings from its metadata (optional key: files written before it read as none)."""
+def _beginnings(meta: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A cluster's record of beginnings and its pending test from its metadata (optional keys: files written
+    before them read as no record and nothing pending; null in "pending" is nothing pending at that share)."""
+    B = len(BEGINNING_FRACTIONS)
     b = meta.get("beginnings")
     if b is None:
-        return np.zeros(len(BEGINNING_FRACTIONS)), np.zeros(len(BEGINNING_FRACTIONS))
-    return np.array(b["tested"], dtype=float), np.array(b["missed"], dtype=float)
+        return np.zeros(B), np.zeros(B), np.full(B, np.nan)
+    pending = b.get("pending")
+    pending = np.full(B, np.nan) if pending is None else \
+        np.array([np.nan if x is None else float(x) for x in pending], dtype=float)
+    return np.array(b["tested"], dtype=float), np.array(b["missed"], dtype=float), pending
 
 
 def save_state(state: LibraryState, path, *, generation: int = 1) -> Path:

@@ -260,3 +260,20 @@ def test_partial_fit_stops_testing_a_full_record(monkeypatch):
     tested = lib._components.items[0].cluster.tested
     assert len(calls) == int(np.ceil(RECORD_TESTS)) < 12
     assert (tested >= RECORD_TESTS - 1e-9).all() and (tested < RECORD_TESTS + 1).all()
+
+
+def test_a_pending_first_test_joins_the_record_once_when_two_components_merge():
+    """A fragment's first demonstration, tested when it was created against the component nearest to it, counts
+    in the record (weight 1) when it merges, and only then; the merged halves keep nothing pending."""
+    w = np.zeros(3)
+    a = Cluster.of_sample(w, 1.0, 2.0, pending=np.array([1.0, 0.0]))
+    b = Cluster.of_sample(w + 0.1, 1.0, 2.0, missed=np.array([0.0, np.nan]), pending=np.array([1.0, np.nan]))
+    np.testing.assert_array_equal(a.tested, np.zeros(B))             # pending is not yet the record
+    a2, _ = a.add(w, 1.0, 1.0, 2.0)
+    np.testing.assert_array_equal(a2.pending, [1.0, 0.0])            # an update keeps it pending
+    p, _ = a.pool(b)
+    np.testing.assert_allclose(p.tested, [1.0 + 1.0 + 1.0, 1.0], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(p.missed, [2.0, 0.0], rtol=0, atol=1e-15)
+    assert np.isnan(p.pending).all()
+    with pytest.raises(ValueError, match="pending test of beginnings has shape"):
+        Cluster.of_sample(w, 1.0, 2.0, pending=np.zeros(B + 1))
