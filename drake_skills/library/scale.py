@@ -184,8 +184,6 @@ def beginning_blind(tested: np.ndarray, missed: np.ndarray, shares: np.ndarray) 
     tested = np.asarray(tested, float)
     rate = np.divide(np.asarray(missed, float), tested, out=np.zeros_like(tested), where=tested > 0)
     shares = np.asarray(shares, float)
-    if F.size == 1:
-        return (shares <= 1.5 * F[0]) & (rate[:, 0] > BLIND_RATE)
     # np.interp row by row, vectorized: the segment of F each share falls in, clamped at both ends
     i = np.clip(np.searchsorted(F, shares), 1, F.size - 1)
     t = np.clip((shares - F[i - 1]) / (F[i] - F[i - 1]), 0.0, 1.0)

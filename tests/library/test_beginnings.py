@@ -93,13 +93,19 @@ def test_partial_fit_records_the_beginnings_of_a_demonstration_against_the_compo
         np.testing.assert_array_equal(x.cluster.missed, y.cluster.missed)
 
 
-def test_a_library_file_keeps_the_record_of_beginnings(tmp_path):
+def _two_skills(seed):
+    """Two synthetic skills 3 apart, 3 demonstrations each taught interleaved: (bank, rng, library)."""
     bank = skill_bank(2, 0, separation=3.0)
-    rng = np.random.default_rng(3)
+    rng = np.random.default_rng(seed)
     lib = SkillLibrary(LibraryConfig())
     for _ in range(3):
         for k in range(2):
             lib.partial_fit(bank.demo(k, rng))
+    return bank, rng, lib
+
+
+def test_a_library_file_keeps_the_record_of_beginnings(tmp_path):
+    bank, rng, lib = _two_skills(3)
     blind = Cluster(*(getattr(lib._components.items[0].cluster, f) for f in
                       ("support", "mean", "factor", "duration", "path_length")), np.full(B, 2.0), np.array([2.0, 1.0]))
     c = lib._components.items[0]
@@ -127,12 +133,7 @@ def test_a_beginning_one_skill_explains_is_undecided_while_a_blind_skill_cannot_
     beginnings missed), the same beginning is undecided, naming skill 1, as long as it lies within BLIND_REACH
     thresholds of it; a record that misses half of its beginnings blocks nothing, and neither does a blind skill
     the beginning is far from (BLIND_REACH 0) nor a record read for a beginning of a known fraction."""
-    bank = skill_bank(2, 0, separation=3.0)
-    rng = np.random.default_rng(4)
-    lib = SkillLibrary(LibraryConfig())
-    for _ in range(3):
-        for k in range(2):
-            lib.partial_fit(bank.demo(k, rng))
+    bank, rng, lib = _two_skills(4)
     assert lib.n_components == 2
     k0 = lib.recognize(bank.demo(0, rng).human, observed_fraction=1.0).component
     row1 = 1 - lib._components.index(k0)
