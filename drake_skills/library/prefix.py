@@ -276,6 +276,97 @@ def _per_phase(cache: dict | None, kind: str, phases: tuple, m: int, compute):
     return hit
 
 
+def score_component(y: np.ndarray, phases, mean_h: np.ndarray, inflate: float, chol: np.ndarray,
+                    basis: GaussianBasis, noise_var: float):
+    """:func:`score_phases` for one component and several sample sets: arrays of shape (B, J).
+
+    Row ``b`` equals the component's column of :func:`score_phases` of ``y[b]``.
+    :func:`score_phases` diagonalizes the shared covariance per phase once for all K
+    components (one batched eigendecomposition, the cost of a recognition). A question about
+    one component (the record of beginnings, asked at every update while the library is young)
+    does not need the eigenbasis: with ``A_j = sigma^2 I + c L^T G_j L`` and
+    ``C_j = sigma^2 I + c B_j`` (``B_j = V_g^T Sigma V_g`` of the fit statistic),
+
+        d2_obs = (r^T r - c (L^T u)^T A_j^{-1} (L^T u)) / sigma^2
+        logdet = log det A_j - h log sigma^2
+        d2     = z^T C_j^{-1} z,   z = I_D (x) g^{-1/2} V^T H y - V_g^T mu
+
+    one batched Cholesky factorization each, shared by the sample sets, several times
+    cheaper than the eigendecompositions, and without a cache that every update empties.
+    Where a factorization fails (a covariance that rounding leaves short of positive
+    definite, as with fewer samples than basis functions), :func:`score_phases` answers.
+
+    Parameters
+    ----------
+    y : array, shape (B, m, D)
+        Sample sets of equal size (the beginnings of one motion, resampled alike).
+    mean_h : array, shape (D N,)
+        The component's human mean, as a row of ``means_h``.
+    inflate : float
+        Its ``c_k``.
+    (the rest as :func:`score_phases`)
+    """
+    try:
+        with np.errstate(divide="raise", over="raise", invalid="raise"):
+            return _score_component(y, phases, mean_h, inflate, chol, basis, noise_var)
+    except (np.linalg.LinAlgError, FloatingPointError):
+        # a covariance that rounding leaves short of positive definite (or overflows): the
+        # eigendecompositions of score_phases clip its eigenvalues at 0
+        out = [score_phases(yb, phases, np.asarray(mean_h, float)[None], np.array([float(inflate)]), chol, basis,
+                            noise_var) for yb in y]
+        return tuple(np.stack([o[i][:, 0] for o in out]) for i in range(3))
+
+
+def _score_component(y, phases, mean_h, inflate, chol, basis, noise_var):
+    B, m, D = y.shape
+    phases = tuple(float(f) for f in phases)
+    Phi, PtP = _basis_terms(basis, phases, int(m))
+    J, _, N = Phi.shape
+    h = D * N
+    c, s2 = float(inflate), float(noise_var)
+    mu = np.asarray(mean_h, float).reshape(D, N)
+    PhiT = Phi.transpose(0, 2, 1)[None]                                # (1, J, N, m)
+    Hy = np.matmul(PhiT, y[:, None]).transpose(0, 1, 3, 2).reshape(B, J, h)    # H y, dimension-major
+    Hm = np.matmul(PtP, mu.T[None]).transpose(0, 2, 1).reshape(J, h)          # H H^T mu = H (mean samples)
+    u = Hy - Hm[None]                                                  # H r, r = y - Phi mu
+    r = y[:, None] - np.matmul(Phi, mu.T[None])[None]                  # (B, J, m, D)
+    rr = np.sum(r * r, axis=(2, 3))
+    Ld = chol.reshape(D, N, -1)
+    Gt = sum(np.matmul(Ld[d].T, np.matmul(PtP, Ld[d])) for d in range(D))       # L^T G_j L
+    LA = np.linalg.cholesky(s2 * np.eye(h) + c * Gt)
+    x = np.linalg.solve(LA[None], (u @ chol)[..., None])[..., 0]       # LA^-1 L^T u
+    d2_obs = (rr - c * np.sum(x * x, axis=2)) / s2
+    logdet = 2.0 * np.sum(np.log(np.diagonal(LA, axis1=1, axis2=2)), axis=1) - h * np.log(s2)
+    loglik = -0.5 * (m * D * (_LOG_2PI + np.log(s2)) + logdet[None] + d2_obs)
+    Vs, Vg = _seen_maps(basis, phases, int(m), D)                     # (J, h, w), zero columns as padding
+    z = np.einsum("bjh,jhw->bjw", Hy, Vs) - np.einsum("h,jhw->jw", mu.reshape(h), Vg)[None]
+    LV = np.matmul(chol.T[None], Vg)
+    LC = np.linalg.cholesky(s2 * np.eye(Vg.shape[2]) + c * np.matmul(LV.transpose(0, 2, 1), LV))  # padding: z = 0
+    zc = np.linalg.solve(LC[None], z[..., None])[..., 0]
+    d2 = np.sum(zc * zc, axis=2)
+    dof = np.broadcast_to(seen_dof(basis, phases, int(m), D)[None], d2.shape).copy()
+    return loglik, d2, dof
+
+
+@lru_cache(maxsize=256)
+def _seen_maps(basis: GaussianBasis, phases: tuple, m: int, D: int):
+    """``I_D (x) V g^{-1/2}`` and ``I_D (x) V g^{1/2}`` per phase, zero-padded to a common width: (J, h, w) each.
+
+    The directions are :func:`_seen_directions` at each phase (settings only; cached, read-only).
+    """
+    N = basis.n_basis
+    dirs = [_seen_directions(basis, f, m, interaction.SEEN_RCOND) for f in phases]
+    n = max(g.size for _, g in dirs)
+    Vs, Vg = np.zeros((len(phases), D * N, D * n)), np.zeros((len(phases), D * N, D * n))
+    for j, (V, g) in enumerate(dirs):
+        for d in range(D):
+            Vs[j, d * N:(d + 1) * N, d * n:d * n + g.size] = V / np.sqrt(g)
+            Vg[j, d * N:(d + 1) * N, d * n:d * n + g.size] = V * np.sqrt(g)
+    for a in (Vs, Vg):
+        a.setflags(write=False)
+    return Vs, Vg
+
+
 def score_at_phase(y, f: float, means_h, inflate, chol, basis: GaussianBasis, noise_var: float,
                    cache: dict | None = None):
     """:func:`score_phases` at one phase ``f``: arrays of shape (K,)."""

@@ -30,7 +30,7 @@ from drake_skills.data.workspace import Workspace
 from drake_skills.library.algorithm import ComponentModel, gating_scores, responsibilities
 from drake_skills.library.gain import scale_correction
 from drake_skills.library.novelty import Chi2Rule, chi2_ppf
-from drake_skills.library.prefix import PHASE_GRID, phase_band, score_at_phase, score_phases, score_prefix
+from drake_skills.library.prefix import PHASE_GRID, phase_band, score_at_phase, score_component, score_prefix
 from drake_skills.library.prefix_bound import prefix_candidates
 from drake_skills.library.scale import BEGINNING_FRACTIONS, beginning_blind, cross_covariance, observation_noise
 from drake_skills.library.views import Recognition, UnknownSkillError
@@ -399,15 +399,17 @@ class RecognitionMixin:
         wave's beginning fits its component at some phase of the band, but not at the one its
         likelihood picks, and that is what recognition sees). Where recognition resamples a
         beginning to ``fraction n_samples`` points, all are resampled to the count of the last
-        (20 of 100) and scored at the union of their bands, so that one batched
-        eigendecomposition per update serves them.
+        (20 of 100) and scored at the union of their bands (:func:`score_component`: one
+        component, a Cholesky factorization per phase, not the eigendecompositions that serve
+        all K; the other components' prefix means are not computed).
         ``partial_fit`` asks this of the component a demonstration joins, before it does (its
         record of beginnings).
         """
         cfg = self.config
         comps = self._components
-        pm = self._prefix_model()
-        mean_h, inflate = pm.means_h[[k]], np.array([1.0 + 1.0 / comps.support[k]])
+        U = self._unshrink_human()                # as _prefix_model, for row k alone
+        mean_h, chol = U @ comps.means_h[k], U @ self._metric().chol
+        inflate = 1.0 + 1.0 / comps.support[k]
         F = BEGINNING_FRACTIONS
         m = _prefix_samples(cfg.n_samples, F[-1])
         subs = [path.cut(f * path.length) for f in F]
@@ -418,14 +420,15 @@ class RecognitionMixin:
         guess = np.array([subs[b].length for b in done]) / max(float(comps.path_length[k]), 1e-12)
         bands = phase_band(guess)
         ys = [subs[b].resample(m) for b in done]
-        noise, cache = self._noise(), self._prefix_cache()
+        noise = self._noise()
         cols = np.flatnonzero(bands.any(axis=0))
-        phases = tuple(np.array(PHASE_GRID)[cols])   # every phase of the bands: one batch, then a cache hit
-        for i, b in enumerate(done):
-            ll, d2, dof = score_phases(ys[i], phases, mean_h, inflate, pm.chol, cfg.basis_human, noise, cache)
-            j = int(np.argmax(np.where(bands[i, cols], ll[:, 0], -np.inf)))   # score_prefix's phase of the band
-            if np.isfinite(d2[j, 0]):          # a statistic that is not a number tests nothing
-                out[b] = float(self._rule.novel(ll[j], d2[j], dof[j])[0])
+        phases = tuple(np.array(PHASE_GRID)[cols])   # every phase of the bands
+        ll, d2, dof = score_component(np.stack(ys), phases, mean_h, inflate, chol, cfg.basis_human, noise)
+        rows = np.arange(len(done))
+        j = np.argmax(np.where(bands[:, cols], ll, -np.inf), axis=1)   # score_prefix's phase of each band
+        novel = self._rule.novel(ll[rows, j], d2[rows, j], dof[rows, j])
+        ok = np.isfinite(d2[rows, j])              # a statistic that is not a number tests nothing
+        out[np.array(done)[ok]] = novel[ok].astype(float)
         return out
 
 

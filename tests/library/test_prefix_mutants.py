@@ -71,6 +71,37 @@ def test_score_phases_equals_prefix_statistics_for_every_component_and_phase(cas
             assert set(cache[kind]["phase"]) == {(f, y.shape[0]) for f in (0.05, 0.3, 0.65, 1.0, 0.1, 0.95)}
 
 
+@pytest.mark.parametrize("case", CASES, ids=[str(i) for i in range(len(CASES))])
+def test_score_component_equals_prefix_statistics_for_each_sample_set_and_phase(case):
+    """One component, two sample sets at once (the record of beginnings): log-likelihood and fit statistic rtol 1e-9
+    against the reference, the degrees of freedom exactly; the phases see different numbers of directions."""
+    y, means, inflate, chol, basis, S = _problem(**case)
+    rng = np.random.default_rng(case["seed"] + 100)
+    ys = np.stack([y, y + rng.normal(0.0, 0.1, y.shape)])
+    phases = (0.05, 0.3, 0.65, 1.0)
+    for k in range(means.shape[0]):
+        got = prefix.score_component(ys, phases, means[k], inflate[k], chol, basis, 0.03)
+        for b in range(2):
+            ref = _reference(ys[b], phases, means[[k]], inflate[[k]], S, basis, 0.03)[:, :, 0]
+            np.testing.assert_allclose(got[0][b], ref[0], rtol=1e-9, atol=1e-8)
+            np.testing.assert_allclose(got[1][b], ref[1], rtol=1e-9, atol=1e-9)
+            np.testing.assert_array_equal(got[2][b], ref[2])
+
+
+def test_score_component_falls_back_to_score_phases_where_a_factorization_fails():
+    """A covariance 1e6 times too large against a noise of 1e-12 (three samples, seven basis functions): rounding
+    leaves the matrices short of positive definite; the answer is score_phases' column (eigenvalues clipped at 0),
+    not an error."""
+    y, means, inflate, chol, basis, S = _problem(2, N=7, m=3)
+    chol, phases = 1e3 * chol, (0.05, 0.3)
+    with pytest.raises(np.linalg.LinAlgError):          # the direct route cannot take this case
+        prefix._score_component(y[None], phases, means[0], inflate[0], chol, basis, 1e-12)
+    got = prefix.score_component(y[None], phases, means[0], inflate[0], chol, basis, 1e-12)
+    ref = score_phases(y, phases, means[[0]], inflate[[0]], chol, basis, 1e-12)
+    for a, b in zip(got, ref):
+        np.testing.assert_array_equal(a, b[:, 0][None])
+
+
 def test_the_degrees_of_freedom_are_d_times_the_directions_the_samples_see_well():
     """Five samples of a 7-function basis: per dimension, the eigenvalues of Phi^T Phi at least SEEN_RCOND of the
     largest; the same for every component (the prior does not choose them); a 5 % beginning sees two directions."""
