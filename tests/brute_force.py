@@ -11,6 +11,7 @@ import numpy as np
 from scipy.special import logsumexp
 
 from drake_skills.library import recognition
+from drake_skills.library import scale as scale_module
 from drake_skills.library.algorithm import ComponentModel
 from drake_skills.library.novelty import chi2_ppf
 from drake_skills.library.scale import Cluster, SharedScale, gating_covariance, observation_noise
@@ -216,7 +217,7 @@ class Reference:
             for j, c in enumerate(self.items):
                 tested, missed = records[c.id]
                 rate = [m / t if t > 0 else 0.0 for t, m in zip(tested, missed)]
-                if j == best or shares[j] > 0.25 or np.interp(shares[j], F, rate) <= 0.5:
+                if j == best or shares[j] > 0.25 or np.interp(shares[j], F, rate) <= scale_module.BLIND_RATE:
                     continue
                 dof_j = float(np.broadcast_to(dof, (len(self.items),))[j])
                 if d2[j] <= recognition.BLIND_REACH * chi2_ppf(cfg.novelty_quantile, dof_j) and \

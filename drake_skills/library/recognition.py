@@ -71,9 +71,10 @@ class RecognitionMixin:
             If omitted, the fraction is estimated per component: its path length
             against the component's mean path length, refined over a grid of phases (:mod:`~drake_skills.library.prefix`)
             by the likelihood of the samples (``Recognition.phases``); and the answer is
-            "undecided" while a skill that would answer differently misses most of its
-            own demonstrations' beginnings at the share of its path this one covers
-            (its record of beginnings; ``Recognition.blind``, :meth:`_decide`).
+            "undecided" while a skill that would answer differently misses more than
+            ``scale.BLIND_RATE`` (30 %) of its own demonstrations' beginnings at the share
+            of its path this one covers (its record of beginnings; ``Recognition.blind``,
+            :meth:`_decide`).
         workspace : Workspace, optional
         normalized : bool
             ``human`` is already in the library's normalized units (Eq. 14 applied).
@@ -111,7 +112,7 @@ class RecognitionMixin:
 
         ``shares`` (K,): for a beginning, the share of each component's path it covers. A
         beginning that one skill explains is still "undecided" while a component that would
-        answer differently misses most of its own demonstrations' beginnings at its share
+        answer differently misses too many of its own demonstrations' beginnings at its share
         (its record of beginnings; :func:`~drake_skills.library.scale.beginning_blind`) and
         the beginning lies within :data:`BLIND_REACH` of its thresholds: its test cannot rule
         it out (``Recognition.blind`` names it).

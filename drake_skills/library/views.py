@@ -190,7 +190,7 @@ class Recognition:
     phases: np.ndarray = field(default_factory=lambda: np.zeros(0))
     #: p(k | motion) among the components that explain it (zero for the others).
     posterior: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    #: Ids of the components that could not be ruled out because they miss most of their own
+    #: Ids of the components that could not be ruled out because they miss too many of their own
     #: demonstrations' beginnings at the share of their path this beginning covers, and would
     #: answer differently from the best candidate: the reason a beginning that one skill explains
     #: is "undecided" (empty for whole motions and beginnings of a given fraction; the record of

@@ -49,14 +49,14 @@ def test_cluster_record_adds_each_outcome_at_its_weight_skips_untested_shares_an
 
 
 def test_beginning_blind_interpolates_the_miss_rate_and_is_never_blind_past_the_tested_shares():
-    tested = np.array([[2.0, 2.0], [2.0, 4.0], [0.0, 0.0], [4.0, 0.0]])
-    missed = np.array([[2.0, 0.0], [0.0, 3.0], [0.0, 0.0], [2.0, 0.0]])
-    assert BLIND_RATE == 0.5
-    # row 0: rates 1, 0 -> blind while the interpolated rate is above one half (below share 0.15); row 1: 0, 0.75
-    # -> from 0.167 up to 0.25; row 2: nothing tested; row 3: half of its beginnings missed is not enough
+    tested = np.array([[2.0, 2.0], [2.0, 4.0], [0.0, 0.0], [10.0, 0.0]])
+    missed = np.array([[2.0, 0.0], [0.0, 3.0], [0.0, 0.0], [3.0, 0.0]])
+    assert BLIND_RATE == 0.3
+    # row 0: rates 1, 0 -> blind while the interpolated rate is above 0.3 (below share 0.17); row 1: 0, 0.75
+    # -> from 0.14 up to 0.25; row 2: nothing tested; row 3: a rate of exactly 0.3 is not enough
     assert beginning_blind(tested, missed, np.array([0.05, 0.05, 0.05, 0.05])).tolist() == [True, False, False, False]
-    assert beginning_blind(tested, missed, np.array([0.149, 0.15, 0.1, 0.1])).tolist() == [True, False, False, False]
-    assert beginning_blind(tested, missed, np.array([0.151, 0.17, 0.2, 0.12])).tolist() == [False, True, False, False]
+    assert beginning_blind(tested, missed, np.array([0.169, 0.139, 0.1, 0.1])).tolist() == [True, False, False, False]
+    assert beginning_blind(tested, missed, np.array([0.171, 0.141, 0.2, 0.12])).tolist() == [False, True, False, False]
     assert beginning_blind(tested, missed, np.array([0.3, 0.25, 0.3, 0.3])).tolist() == [False, True, False, False]
     # past the last fraction by more than half a step: not tested, never blind
     assert beginning_blind(tested, missed, np.array([0.0, 0.26, 0.0, 0.0])).tolist() == [True, False, False, False]
@@ -131,7 +131,7 @@ def _with_record(lib, index, missed_rate):
 def test_a_beginning_one_skill_explains_is_undecided_while_a_blind_skill_cannot_be_ruled_out(monkeypatch):
     """Two taught skills; a beginning of skill 0 is a skill-0 answer. With skill 1's record blind (its own
     beginnings missed), the same beginning is undecided, naming skill 1, as long as it lies within BLIND_REACH
-    thresholds of it; a record that misses half of its beginnings blocks nothing, and neither does a blind skill
+    thresholds of it; a record that misses one of four of its beginnings blocks nothing, and neither does a blind skill
     the beginning is far from (BLIND_REACH 0) nor a record read for a beginning of a known fraction."""
     bank, rng, lib = _two_skills(4)
     assert lib.n_components == 2
@@ -148,7 +148,8 @@ def test_a_beginning_one_skill_explains_is_undecided_while_a_blind_skill_cannot_
     rec = blind_lib.recognize(part)
     assert rec.status == "undecided" and rec.component is None
     assert rec.blind == (lib._components.ids[row1],)
-    assert _with_record(lib, row1, 0.5).recognize(part).status == "skill"     # half missed is not enough
+    assert _with_record(lib, row1, 0.25).recognize(part).status == "skill"    # one miss in four is not enough
+    assert _with_record(lib, row1, 0.5).recognize(part).status == "undecided"  # two in four are
     # told the fraction, recognition tests the beginning at that phase, where the record says nothing
     frac = lib._normalized(part).length / lib._normalized(h).length
     assert blind_lib.recognize(part, observed_fraction=frac).status == \
