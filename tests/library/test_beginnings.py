@@ -62,6 +62,15 @@ def test_beginning_blind_interpolates_the_miss_rate_and_is_never_blind_past_the_
     assert beginning_blind(tested, missed, np.array([0.0, 0.26, 0.0, 0.0])).tolist() == [True, False, False, False]
 
 
+def test_beginning_blind_reads_a_single_test_and_a_share_never_tested_and_integer_counts():
+    """Integer counts (lists) as the records: one tested beginning missed at both shares is a rate of 1 (blind);
+    a record tested only at 10 % reads 0 at 20 % (not NaN): blind at 5 %, not past 0.1 + 0.1 * (1 - 0.3)."""
+    tested, missed = [[1, 1], [2, 0]], [[1, 1], [2, 0]]
+    assert beginning_blind(tested, missed, [0.05, 0.05]).tolist() == [True, True]
+    assert beginning_blind(tested, missed, [0.2, 0.169]).tolist() == [True, True]
+    assert beginning_blind(tested, missed, [0.25, 0.171]).tolist() == [True, False]
+
+
 def test_a_bad_record_of_beginnings_is_refused_by_the_state_check():
     bad = Cluster(1.0, np.zeros(3), np.zeros((3, 0)), 1.0, 1.0, np.ones(B), np.full(B, 2.0))
     with pytest.raises(ValueError, match="record of beginnings"):
