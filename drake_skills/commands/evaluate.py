@@ -63,7 +63,10 @@ def register(sub) -> None:
                                     "response error of predict_robot beside a task-mean baseline, "
                                     "recognition of path prefixes with the phase estimated (anticipation), and "
                                     "the commits of the Drake controller's decision logic replayed on each test "
-                                    "interaction (first commit, path share at it, skill executed).")
+                                    "interaction (first commit, path share at it, skill executed); and "
+                                    "ipromps' leave-one-out protocol over every interaction (table loo: "
+                                    "beginnings cut at a share of the samples, the forced choice beside the "
+                                    "library's own answers).")
     add_common(q, "eval/interaction")
     q.add_argument("--data", type=Path, default=shared_data_path("buetepage_hr.npz"),
                    help=f"interactions file (default: ../shared/data/buetepage_hr.npz beside the repository, "
@@ -80,7 +83,11 @@ def register(sub) -> None:
                         "e.g. m for a second person's arm)")
     q.add_argument("--rate", type=float, default=100.0,
                    help="sampling rate of the file in Hz (not stated by the source; default 100)")
-    q.add_argument("--quick", action="store_true", help="reduced run: 2 orders (unless --orders), fractions 0.1, 0.5, 1.0")
+    q.add_argument("--loo-orders", type=int, default=None,
+                   help="orders per held-out interaction of the leave-one-out table (ipromps' protocol over every "
+                        "interaction of the file, cut at a share of its samples; default 3, --quick: 1; 0 skips it)")
+    q.add_argument("--quick", action="store_true",
+                   help="reduced run: 2 orders (unless --orders), fractions 0.1, 0.5, 1.0, 1 leave-one-out order")
     q.add_argument("--workers", type=int, default=available_workers(),
                    help="processes for the orders (default: available cores); results do not depend on it")
     q.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -119,6 +126,7 @@ def run_interaction(args: argparse.Namespace) -> int:
               library=_library(args), robot_units=args.robot_units, teaching=args.teaching)
     if args.quick:
         kw.update(fractions=(0.1, 0.5, 1.0))
+    kw["loo_orders"] = args.loo_orders if args.loo_orders is not None else (1 if args.quick else 3)
     rep = evaluate_interaction(InteractionSettings(**kw), workers=args.workers, progress=not args.no_progress)
     rep.summary["command"] = " ".join(["drake-skills", "eval", "interaction"] + sys.argv[3:])
     return _finish(rep, args.out, t0)

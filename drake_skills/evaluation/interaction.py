@@ -30,6 +30,12 @@ Protocol (one *order* = one random permutation of the training interactions):
    would commit to first and at what share of the person's path, and the skill it
    would be executing at the end (a wrong commit the gating revised in time is not
    executed).
+7. ipromps' protocol (table ``loo``, :func:`loo_trial`): every interaction of the file held
+   out in turn, a library learned from all the others, and the held-out one cut at the
+   first share of its *samples* (time, as chenlx92/ipromps cuts it); its forced choice
+   (:func:`best_guess`, what a classifier that always answers would say) beside the
+   library's own answers. Steps 5 and 7 report the forced choice for comparison with
+   classifiers that never abstain; the robot acts only on the library's answers.
 
 Figures are over orders x test interactions. Nothing here is tuned on the test split.
 """
@@ -52,6 +58,10 @@ STREAM_INTERACTION = 7
 #: Recognition from the wrist alone in chenlx92/ipromps (Interaction ProMPs with phase
 #: estimation, 4 real handover tasks, leave-one-out), by observed fraction (issue 12).
 IPROMPS_WRIST = {0.1: 0.647, 0.3: 0.735, 0.5: 0.662}
+#: The observation ratios of ipromps' leave-one-out evaluation (``scripts/loocv_full.py``): the
+#: first ``int(ratio * T)`` of a recording's T samples, i.e. a share of its *time*.
+IPROMPS_RATIOS = (0.1, 0.2, 0.3, 0.4, 0.5)
+STREAM_LOO = 8
 OUTCOMES = ("correct", "wrong", "undecided", "unknown")
 #: Teaching orders: interleaved, or task by task.
 TEACHING = ("random", "row")
@@ -79,6 +89,9 @@ class InteractionSettings:
     #: Units of the file's robot columns, for the response tables ("rad": the YuMi's joint angles;
     #: "m" for a second person's arm in metres).
     robot_units: str = "rad"
+    #: Random orders per held-out interaction of the leave-one-out table (ipromps' protocol over
+    #: every interaction of the file; 0 skips it).
+    loo_orders: int = 3
     #: Experiment seed (the orders).
     seed: int = 0
     #: Settings of every library (its workspace is replaced by the training bounding box).
@@ -89,7 +102,7 @@ class InteractionSettings:
             raise ValueError(f"InteractionSettings.columns must be 'hand' or 'arm', got {self.columns!r}")
         if self.teaching not in TEACHING:
             raise ValueError(f"InteractionSettings.teaching must be one of {TEACHING}, got {self.teaching!r}")
-        for name, lo in (("orders", 1), ("n_steps", 2)):
+        for name, lo in (("orders", 1), ("n_steps", 2), ("loo_orders", 0)):
             v = getattr(self, name)
             if isinstance(v, bool) or int(v) != v or v < lo:
                 raise ValueError(f"InteractionSettings.{name} must be an integer >= {lo}, got {v!r}")
@@ -231,6 +244,24 @@ class InteractionTrial:
     executed: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
     #: Whether the gating's final answer came from the wrist resting (else: its time-out).
     at_rest: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    #: Anticipation's forced choice, shape (n_test, n_fractions): CORRECT or WRONG of :func:`best_guess`.
+    prefix_guess: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), int))
+
+
+def best_guess(rec) -> int | None:
+    """The component a classifier that must always answer would name (ipromps' answer: its most likely model).
+
+    The most probable of the components that explain the motion (``Recognition.best``) or,
+    where none does ("unknown"), the most probable of all (``Recognition.responsibilities``).
+    This is a measurement for comparison with classifiers that never abstain; the library's
+    own answer is ``Recognition.status`` and the robot acts on nothing else. None for an
+    empty library.
+    """
+    if rec.best is not None:
+        return rec.best
+    if not len(rec.ids):
+        return None
+    return rec.ids[int(np.argmax(rec.responsibilities))]
 
 
 def replay_commits(library, demo: Demonstration, workspace: Workspace, rule=None):
@@ -315,6 +346,7 @@ def interaction_trial(ctx: InteractionContext, index: int) -> InteractionTrial:
     d2_min, d2_thr = np.empty(n_test), np.empty(n_test)
     errs = np.full((3, n_test), np.nan)
     p_out, p_phase = np.empty((n_test, n_f), int), np.full((n_test, n_f), np.nan)
+    p_guess = np.empty((n_test, n_f), int)
     Phi_r = cfg.basis_robot.phi_uniform(s.n_steps)
     first, share, executed = np.full(n_test, UNKNOWN), np.full(n_test, np.nan), np.empty(n_test, int)
     rest = np.zeros(n_test, bool)
@@ -333,6 +365,7 @@ def interaction_trial(ctx: InteractionContext, index: int) -> InteractionTrial:
             end = prefix_end(d.human, ctx.workspace, f, cfg.resample_tolerance, adapt_to_noise=cfg.adapt_to_noise)
             r = lib.recognize(d.human[:end])
             p_out[i, k] = lab.outcome(r.component, d.task, r.status)
+            p_guess[i, k] = lab.outcome(best_guess(r), d.task)
             if r.status == "skill":
                 p_phase[i, k] = r.phase
         g, rest[i] = replay_commits(lib, d, ctx.workspace)
@@ -343,7 +376,65 @@ def interaction_trial(ctx: InteractionContext, index: int) -> InteractionTrial:
         executed[i] = lab.outcome(g.component, d.task, g.status)
     labels = tuple(lab.label_of(c.id) for c in lib.components)
     return InteractionTrial(lib.n_components, outcomes, d2_min, d2_thr, errs[0], errs[1], errs[2], p_out, p_phase,
-                            labels, first, share, executed, rest)
+                            labels, first, share, executed, rest, p_guess)
+
+
+@dataclass(frozen=True, eq=False)
+class LooResult:
+    """One held-out interaction and order of :func:`loo_trial`, per ratio of ``IPROMPS_RATIOS``."""
+
+    #: CORRECT, WRONG, UNKNOWN or UNDECIDED: the library's answer on the first share of the samples.
+    outcomes: np.ndarray
+    #: CORRECT or WRONG: the forced choice (:func:`best_guess`).
+    guess: np.ndarray
+    #: Share of the person's path (the library's arc length) those samples cover.
+    path_share: np.ndarray
+
+
+def loo_trial(ctx: InteractionContext, item: tuple[int, int]) -> LooResult:
+    """ipromps' protocol for one interaction: learn all the others, recognize its first shares of samples.
+
+    ``item`` is (index into ``ctx.train + ctx.test``, order). The library (settings'
+    ``library``, workspace the bounding box of the other interactions' human columns) learns
+    every other interaction of the file in a random order (the settings' ``teaching``); the
+    held-out one is cut at the first ``int(r * T)`` of its ``T`` samples (at least 2) for each
+    ratio ``r`` of :data:`IPROMPS_RATIOS` (a share of its time, as ipromps cuts it, not of its
+    path) and recognized without a fraction. A beginning that has not moved yet (the library
+    refuses it) counts as unknown, and its forced choice as wrong.
+    """
+    s = ctx.settings
+    i, order = item
+    demos = ctx.train + ctx.test
+    held = demos[i]
+    others = demos[:i] + demos[i + 1:]
+    ws = workspace_of(others)
+    cfg = replace(s.library, workspace=ws)
+    rng = trial_rng(s.seed, i * 1000 + order, STREAM_LOO)
+    lab = LabeledLibrary(cfg)
+    for j in teaching_order([d.task for d in others], rng, s.teaching):
+        lab.teach(others[j])
+    lib = lab.library
+    t_share, share = _path_share(held, ws, cfg)
+    n = len(IPROMPS_RATIOS)
+    out, guess, path = np.full(n, UNKNOWN), np.full(n, WRONG), np.empty(n)
+    for k, ratio in enumerate(IPROMPS_RATIOS):
+        end = max(2, int(ratio * len(held.t)))
+        path[k] = float(np.interp(held.t[end - 1] - held.t[0], t_share, share))
+        try:
+            r = lib.recognize(held.human[:end])
+        except ValueError as e:
+            if "does not move" not in str(e):
+                raise
+            continue  # the wrist has not moved yet
+        out[k] = lab.outcome(r.component, held.task, r.status)
+        guess[k] = lab.outcome(best_guess(r), held.task)
+    return LooResult(out, guess, path)
+
+
+def _path_share(demo: Demonstration, workspace: Workspace, cfg: LibraryConfig):
+    from drake_skills.sim.demo import path_progress
+
+    return path_progress(demo, workspace, cfg.resample_tolerance, adapt_to_noise=cfg.adapt_to_noise)
 
 
 def _fractions(outcomes) -> list[float]:
@@ -351,10 +442,10 @@ def _fractions(outcomes) -> list[float]:
     return [c, w, d, u]  # in OUTCOMES order
 
 
-def _fig(rep_rows, fractions, tasks, err_by_task, robot_units: str = "rad"):
+def _fig(rep_rows, fractions, tasks, err_by_task, robot_units: str = "rad", forced=None):
     import matplotlib.pyplot as plt
 
-    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 3.8))
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.4))
     a = np.array(rep_rows)  # (n_fractions, 4)
     colors = ("tab:green", "tab:red", "tab:orange", "0.6")
     bottom = np.zeros(len(fractions))
@@ -364,11 +455,13 @@ def _fig(rep_rows, fractions, tasks, err_by_task, robot_units: str = "rad"):
         bottom += a[:, j]
     fx = sorted(IPROMPS_WRIST)
     ax.plot(fx, [IPROMPS_WRIST[f] for f in fx], "kD", label="ipromps, wrist only (correct)")
+    if forced is not None:
+        ax.plot(fractions, forced, "k--", marker=".", lw=1, label="forced choice (best_guess), correct")
     ax.set_xlabel("true fraction of the path observed")
     ax.set_ylabel("fraction of test interactions x orders")
     ax.set_title("Anticipation: recognize(prefix), phase estimated", fontsize=9)
     ax.set_ylim(0, 1.05)
-    ax.legend(fontsize=7, loc="lower right")
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=3)
     x = np.arange(len(tasks))
     for j, (name, c) in enumerate((("conditioned (predict_robot)", "tab:green"),
                                    ("recognized component's mean", "tab:blue"),
@@ -452,6 +545,7 @@ def evaluate_interaction(settings: InteractionSettings, *, workers: int = 1, pro
 
     P = np.stack([t.prefix_outcomes for t in trials])  # (orders, n_test, n_f)
     Ph = np.stack([t.prefix_phases for t in trials])
+    G = np.stack([t.prefix_guess for t in trials])
     rows, frac_rows = [], []
     for k, f in enumerate(s.fractions):
         fr = _fractions(P[:, :, k])
@@ -461,13 +555,17 @@ def evaluate_interaction(settings: InteractionSettings, *, workers: int = 1, pro
         est = float(ph.mean()) if ph.size else float("nan")
         err = float(np.mean(np.abs(ph - f))) if ph.size else float("nan")
         ref = IPROMPS_WRIST.get(round(f, 2))
-        rows.append([f, *fr, est, err, "-" if ref is None else ref])
+        rows.append([f, *fr, est, err, float(np.mean(G[:, :, k] == CORRECT)), "-" if ref is None else ref])
     anticipation = Table(["observed", *OUTCOMES, "estimated phase (mean)", "phase error (mean |est - true|)",
-                          "ipromps wrist-only correct"], rows,
+                          "forced choice correct", "ipromps wrist-only correct"], rows,
                          caption=("Each test interaction cut at a true fraction of its path length (the library's "
                                   "arc length: normalized units, resample_tolerance), recognized WITHOUT "
                                   "observed_fraction (the phase is estimated). Phase over 'skill' answers. "
-                                  "ipromps: chenlx92/ipromps, 4 real handover tasks, leave-one-out, wrist only."))
+                                  "Forced choice: the most probable component that explains the beginning, or of "
+                                  "all where none does (best_guess; a measurement, the robot never acts on it). "
+                                  "ipromps: chenlx92/ipromps, 4 real handover tasks, leave-one-out, wrist only, "
+                                  "always answers; its fraction is a share of time (see the table loo)."))
+    loo = _loo_table(ctx, s, workers, progress) if s.loo_orders else None
 
     D2 = np.stack([t.d2_min for t in trials])
     thr = np.stack([t.d2_threshold for t in trials])
@@ -508,7 +606,8 @@ def evaluate_interaction(settings: InteractionSettings, *, workers: int = 1, pro
 
     rep = EvalReport("Real human-robot interactions", {
         "recognition": recognition, "components": components, "response": response,
-        "anticipation": anticipation, "commits": commits, "test_interactions": per_test})
+        "anticipation": anticipation, "commits": commits, "test_interactions": per_test}
+                    | ({"loo": loo[0]} if loo else {}))
     c, w, d_, u = _fractions(out)
     allr = err_by_task["all"]
     rep.summary = {
@@ -526,13 +625,46 @@ def evaluate_interaction(settings: InteractionSettings, *, workers: int = 1, pro
                     "mean_path_share_at_commit": float(np.mean(S[committed])) if committed.any() else None,
                     "final_answer_at_rest": float(R.mean()),
                     "executed": dict(zip(OUTCOMES, _fractions(X)))},
+        "forced_choice": {str(f): float(np.mean(G[:, :, k] == CORRECT)) for k, f in enumerate(s.fractions)},
+        **({"loo": loo[1]} if loo else {}),
         "goals": {"correct >= 0.95": c >= 0.95, "wrong <= 0.02": w <= 0.02,
                   "4 <= components <= 6": bool(4 <= K.mean() <= 6),
                   "conditioned response below task mean": bool(allr[0] < allr[2])},
     }
     if figures:
-        rep.figures = {"interaction": _fig(frac_rows, np.array(s.fractions), tasks, err_by_task, s.robot_units)}
+        forced = [float(np.mean(G[:, :, k] == CORRECT)) for k in range(len(s.fractions))]
+        rep.figures = {"interaction": _fig(frac_rows, np.array(s.fractions), tasks, err_by_task, s.robot_units,
+                                           forced)}
     return rep
+
+
+def _loo_table(ctx: InteractionContext, s: InteractionSettings, workers: int, progress: bool):
+    """The table ``loo`` (ipromps' protocol, :func:`loo_trial`) and its summary entry."""
+    demos = ctx.train + ctx.test
+    items = [(i, o) for i in range(len(demos)) for o in range(s.loo_orders)]
+    res = run_trials(loo_trial, items, ctx, workers=workers, desc="interaction: leave one out", progress=progress)
+    O = np.stack([r.outcomes for r in res])  # (items, n_ratios)
+    Gs = np.stack([r.guess for r in res])
+    S = np.stack([r.path_share for r in res])
+    rows, summary = [], {}
+    for k, ratio in enumerate(IPROMPS_RATIOS):
+        fr = _fractions(O[:, k])
+        guess = float(np.mean(Gs[:, k] == CORRECT))
+        ref = IPROMPS_WRIST.get(round(ratio, 2))
+        rows.append([ratio, float(np.median(S[:, k])), float(np.mean(S[:, k] < 0.02)), guess,
+                     "-" if ref is None else ref, *fr])
+        summary[str(ratio)] = {"forced_choice_correct": guess, **dict(zip(OUTCOMES, fr)),
+                               "median_path_share": float(np.median(S[:, k]))}
+    table = Table(["observed share of samples (time)", "median share of the path", "path share below 2 %",
+                   "forced choice correct", "ipromps wrist-only correct", *OUTCOMES], rows,
+                  caption=(f"ipromps' protocol (chenlx92/ipromps, scripts/loocv_full.py): leave one out over all "
+                           f"{len(demos)} interactions of the file, {s.loo_orders} random orders of the other "
+                           f"{len(demos) - 1} each (workspace: their bounding box), the held-out one cut at the "
+                           "first share of its samples (time, not path) and recognized without a fraction. "
+                           "Forced choice: best_guess, what a classifier that always answers would say (ipromps "
+                           "does); the last four columns are the library's own answers. A recording that "
+                           "starts at rest has covered little of its path at a small share of its time."))
+    return table, summary
 
 
 def default_data_path() -> Path:
