@@ -57,7 +57,7 @@ def sweep(field: str, values, *, orders: int = 4, tables=TABLES, data=None, out=
     splits = development_splits(train)
     default = getattr(LibraryConfig(), field)
     for v in values:
-        settings = InteractionSettings(data=path, orders=orders, library=LibraryConfig(**{field: v}))
+        settings = InteractionSettings(data=path, orders=orders, library=LibraryConfig(**{field: v}), loo_orders=0)
         reps = [evaluate_interaction(settings, progress=False, figures=False,
                                      context=InteractionContext.from_splits(taught, held, settings))
                 for taught, held in splits]

@@ -37,7 +37,7 @@ def _set_share(share: float) -> None:
 
 
 def _internal_validation(orders: int):
-    settings = InteractionSettings(data=default_data_path(), orders=orders)
+    settings = InteractionSettings(data=default_data_path(), orders=orders, loo_orders=0)
     train = load_interactions(default_data_path()).train
     return [evaluate_interaction(settings, progress=False, figures=False,
                                  context=InteractionContext.from_splits(taught, held, settings))

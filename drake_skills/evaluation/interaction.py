@@ -396,7 +396,7 @@ def loo_trial(ctx: InteractionContext, item: tuple[int, int]) -> LooResult:
 
     ``item`` is (index into ``ctx.train + ctx.test``, order). The library (settings'
     ``library``, workspace the bounding box of the other interactions' human columns) learns
-    every other interaction of the file in a random order (the settings' ``teaching``); the
+    every other interaction of both splits in a random order (the settings' ``teaching``); the
     held-out one is cut at the first ``int(r * T)`` of its ``T`` samples (at least 2) for each
     ratio ``r`` of :data:`IPROMPS_RATIOS` (a share of its time, as ipromps cuts it, not of its
     path) and recognized without a fraction. A beginning that has not moved yet (the library
@@ -658,7 +658,8 @@ def _loo_table(ctx: InteractionContext, s: InteractionSettings, workers: int, pr
     table = Table(["observed share of samples (time)", "median share of the path", "path share below 2 %",
                    "forced choice correct", "ipromps wrist-only correct", *OUTCOMES], rows,
                   caption=(f"ipromps' protocol (chenlx92/ipromps, scripts/loocv_full.py): leave one out over all "
-                           f"{len(demos)} interactions of the file, {s.loo_orders} random orders of the other "
+                           f"{len(demos)} interactions of the evaluation (both splits), {s.loo_orders} random "
+                           f"orders of the other "
                            f"{len(demos) - 1} each (workspace: their bounding box), the held-out one cut at the "
                            "first share of its samples (time, not path) and recognized without a fraction. "
                            "Forced choice: best_guess, what a classifier that always answers would say (ipromps "
