@@ -50,6 +50,12 @@ def as_finite_array(x, name: str, *, ndim: int | None = None, shape=None,
     """
     p = _prefix(where)
     try:
+        complex_ = np.iscomplexobj(x)
+    except (TypeError, ValueError):  # ragged or not numeric: the conversion below names it
+        complex_ = False
+    if complex_:
+        raise ValueError(f"{p}{name} is complex; give real numbers")
+    try:
         a = np.asarray(x, dtype=float)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"{p}{name} is not numeric ({exc})") from None
@@ -81,15 +87,28 @@ def check_increasing(t: np.ndarray, name: str = "t", where: str | None = None) -
                          f"{name}[{i}]={t[i]:g} then {name}[{i + 1}]={t[i + 1]:g}")
 
 
-def check_integer(value, name: str, lo: int) -> int:
-    """``value`` as an int >= ``lo`` (a whole float counts; bool, nan, inf and text do not), else a ValueError naming ``name``."""
+def check_integer(value, name: str, lo: int, hi: int | None = None) -> int:
+    """``value`` as an int in ``[lo, hi]`` (a whole float counts; bool, nan, inf and text do not), else a ValueError naming ``name``."""
     try:
         whole = not isinstance(value, bool) and int(value) == value
     except (TypeError, ValueError, OverflowError):
         whole = False
-    if not whole or value < lo:
-        raise ValueError(f"{name} must be an integer >= {lo}, got {value!r}")
+    if not whole or value < lo or (hi is not None and value > hi):
+        bound = f">= {lo}" if hi is None else f"in {lo}..{hi}"
+        raise ValueError(f"{name} must be an integer {bound}, got {value!r}")
     return int(value)
+
+
+def check_fraction(value, name: str = "observed_fraction") -> float:
+    """``value`` as a float in (0, 1] (bool and text are refused), else a ValueError naming ``name``."""
+    ok = not isinstance(value, (bool, np.bool_, str, bytes)) and np.ndim(value) == 0
+    try:
+        f = float(value) if ok else float("nan")
+    except (TypeError, ValueError):
+        f = float("nan")
+    if not 0 < f <= 1:
+        raise ValueError(f"{name} must be a number in (0, 1], got {value!r}")
+    return f
 
 
 def check_positive(value: float, name: str) -> float:

@@ -38,8 +38,8 @@ class Demonstration:
     name : str, optional
         Where the demonstration came from (file name), used in error messages.
 
-    All arrays are validated (finite, matching lengths, monotonic time, at
-    least ``MIN_SAMPLES`` samples) and stored read-only.
+    All arrays are validated (finite, finite spans, matching lengths, monotonic
+    time, at least ``MIN_SAMPLES`` samples) and stored as read-only copies.
     """
 
     t: np.ndarray
@@ -65,6 +65,18 @@ class Demonstration:
                 raise ValueError(f"{where}: robot has {robot.shape[0]} rows but t has {t.shape[0]}")
             if robot.shape[1] < 1:
                 raise ValueError(f"{where}: robot has no columns")
+        with np.errstate(over="ignore", invalid="ignore"):
+            spans = [("t", float(t[-1] - t[0]))] + [
+                (label, float(np.ptp(a, axis=0).max())) for label, a in (("human", human), ("robot", robot))
+                if a is not None]
+        for label, span in spans:
+            if not np.isfinite(span):
+                raise ValueError(f"{where}: {label} spans more than the largest float "
+                                 f"({'duration' if label == 't' else 'range'} {span}); check the units")
+        # own read-only copies: the caller's arrays stay writable, and a later write to them
+        # (or to the array they view) cannot change a demonstration the library has learned
+        t, human = np.array(t, copy=True), np.array(human, copy=True)
+        robot = None if robot is None else np.array(robot, copy=True)
         for a in (t, human, robot):
             if a is not None:
                 a.setflags(write=False)

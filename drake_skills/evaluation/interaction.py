@@ -255,13 +255,15 @@ def best_guess(rec) -> int | None:
     where none does ("unknown"), the most probable of all (``Recognition.responsibilities``).
     This is a measurement for comparison with classifiers that never abstain; the library's
     own answer is ``Recognition.status`` and the robot acts on nothing else. None for an
-    empty library.
+    empty library, and where no component has any responsibility (a pruned recognition
+    that scored none): no guess, which the tables count as not correct.
     """
     if rec.best is not None:
         return rec.best
-    if not len(rec.ids):
+    r = np.asarray(rec.responsibilities, dtype=float)
+    if not len(rec.ids) or not (r > 0).any():
         return None
-    return rec.ids[int(np.argmax(rec.responsibilities))]
+    return rec.ids[int(np.argmax(r))]
 
 
 def replay_commits(library, demo: Demonstration, workspace: Workspace, rule=None):

@@ -23,6 +23,10 @@ NOVELTY_TESTS = ("chi2", "loglik")
 #: files of schema <= 2 hold them; storage drops them from such files).
 RETIRED_FIELDS = ("sigma_init_human", "sigma_init_robot", "gating_floor", "fast_forgetting")
 
+#: Largest ``n_samples`` and ``n_basis_*`` a config accepts (the defaults are 100 and 7 / 20).
+MAX_SAMPLES = 100_000
+MAX_BASIS = 200
+
 
 @dataclass
 class WorkspaceBounds:
@@ -168,9 +172,12 @@ class LibraryConfig:
     conditioning_gain: bool = True
 
     def __post_init__(self):
-        ints = {"n_samples": 4, "n_basis_human": 2, "n_basis_robot": 2, "merge_min_age": 0, "delete_min_age": 0}
-        for name, lo in ints.items():
-            setattr(self, name, check_integer(getattr(self, name), f"LibraryConfig.{name}", lo))
+        # (lowest, highest): the upper bounds keep a typo, or a corrupt library file's metadata,
+        # from asking for gigabytes (the joint covariance has (n_basis * D)^2 entries)
+        ints = {"n_samples": (4, MAX_SAMPLES), "n_basis_human": (2, MAX_BASIS), "n_basis_robot": (2, MAX_BASIS),
+                "merge_min_age": (0, None), "delete_min_age": (0, None)}
+        for name, (lo, hi) in ints.items():
+            setattr(self, name, check_integer(getattr(self, name), f"LibraryConfig.{name}", lo, hi))
         numbers = ("basis_width", "prior_scale", "prior_strength", "expert_prior", "observation_noise", "ridge",
                    "consolidation", "delete_min_support", "resample_tolerance", "prior_floor", "novelty_quantile",
                    "merge_quantile", "split_quantile", "decision_risk", "shrinkage", "log_T_nov", "log_T_merge")

@@ -61,7 +61,7 @@ from typing import Sequence
 
 import numpy as np
 
-from drake_skills._checks import as_finite_array
+from drake_skills._checks import as_finite_array, check_fraction
 from drake_skills.data.demonstration import Demonstration
 from drake_skills.data.workspace import Workspace
 from drake_skills.library.algorithm import ComponentModel, Components, Metric, fold_in, gating_metric
@@ -256,6 +256,8 @@ class SkillLibrary(RecognitionMixin, FileMixin):
         return self._view(c, float(self._components.support.sum()), self.n_human)
 
     def _model(self, component_id: int) -> ComponentModel:
+        if isinstance(component_id, (bool, np.bool_)) or not isinstance(component_id, (int, np.integer)):
+            raise KeyError(f"component ids are integers, got {component_id!r}; ids are {list(self._components.ids)}")
         try:
             return self._components.items[self._components.index(component_id)]
         except (KeyError, TypeError):
@@ -461,9 +463,7 @@ class SkillLibrary(RecognitionMixin, FileMixin):
             for a whole motion, ``round(observed_fraction n_samples)`` (>= 2) for a prefix.
         """
         cfg = self.config
-        f = float(observed_fraction)
-        if not 0 < f <= 1:
-            raise ValueError(f"observed_fraction must be in (0, 1], got {observed_fraction!r}")
+        f = check_fraction(observed_fraction)
         n = cfg.n_samples if f == 1 else max(2, int(round(f * cfg.n_samples)))
         return self._normalized(human, workspace, normalized, where).resample(n)
 

@@ -25,7 +25,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from drake_skills._checks import check_integer
+from drake_skills._checks import check_fraction, check_integer
 from drake_skills.data.workspace import Workspace
 from drake_skills.library.algorithm import ComponentModel, gating_scores, responsibilities
 from drake_skills.library.gain import scale_correction
@@ -94,6 +94,7 @@ class RecognitionMixin:
         """
         self._check_fitted()
         if observed_fraction is not None:
+            observed_fraction = check_fraction(observed_fraction)
             y = self.human_samples(human, workspace=workspace, observed_fraction=observed_fraction,
                                    normalized=normalized)
             self._guard(y, workspace, normalized, whole=float(observed_fraction) == 1, query=True, where=None)
@@ -278,7 +279,7 @@ class RecognitionMixin:
                 f = self._phase_of(path, self._model(component))
             y = path.resample(max(2, int(round(cfg.n_samples * f))))
         else:
-            f = float(observed_fraction)
+            f = check_fraction(observed_fraction)
             y = self.human_samples(human, workspace=workspace, observed_fraction=f, normalized=normalized)
             self._guard(y, workspace, normalized, whole=f == 1, query=True, where=None)
             if component is None:

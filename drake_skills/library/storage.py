@@ -111,6 +111,10 @@ def _beginnings(meta: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     b = meta.get("beginnings")
     if b is None:
         return np.zeros(B), np.zeros(B), np.full(B, np.nan)
+    if not isinstance(b, dict) or not all(isinstance(b.get(k, []), list) for k in ("tested", "missed", "pending")) \
+            or not all(x is None or type(x) in (int, float) for k in ("tested", "missed", "pending")
+                       for x in (b.get(k) or [])):
+        raise ValueError(f"beginnings must be an object of lists of numbers (tested, missed, pending), got {b!r:.80}")
     pending = b.get("pending")
     pending = np.full(B, np.nan) if pending is None else \
         np.array([np.nan if x is None else float(x) for x in pending], dtype=float)
@@ -296,6 +300,8 @@ def _read(f, where: str):
         meta = json.loads(str(meta_raw))
     except json.JSONDecodeError as exc:
         raise ValueError(f"{where}: metadata is not valid JSON ({exc})") from None
+    except RecursionError:
+        raise ValueError(f"{where}: metadata is nested too deeply to be a drake-skills library") from None
     if not isinstance(meta, dict) or meta.get("format") != FORMAT:
         raise ValueError(f"{where} is not a drake-skills library (format tag "
                          f"{meta.get('format') if isinstance(meta, dict) else None!r})")
@@ -338,9 +344,15 @@ def _read(f, where: str):
     return meta, version, arrays
 
 
+#: Largest integer a library file may hold (ids, counts, ages): exact in a float, far beyond any library.
+MAX_FILE_INT = 2 ** 53
+
+
 def _int(x, what: str, lo: int = 0) -> int:
     if isinstance(x, bool) or not isinstance(x, int) or x < lo:
-        raise ValueError(f"{what} must be an integer >= {lo}, got {x!r}")
+        raise ValueError(f"{what} must be an integer >= {lo}, got {x!r:.40}")
+    if x > MAX_FILE_INT:
+        raise ValueError(f"{what} must be at most 2**53, got {x}")
     return x
 
 
@@ -377,8 +389,14 @@ def file_generation(path) -> int | None:
     if not path.exists():
         return None
     where = f"library file '{path}'"
+    _not_a_directory(path, where)
     with open(path, "rb") as f:
         return _generation(_read(f, where)[0], where)
+
+
+def _not_a_directory(path: Path, where: str) -> None:
+    if path.is_dir():
+        raise ValueError(f"{where} is a directory; give the library's .npz file")
 
 
 def load_versioned(path) -> tuple[LibraryState, int]:
@@ -387,6 +405,7 @@ def load_versioned(path) -> tuple[LibraryState, int]:
     where = f"library file '{path}'"
     if not path.exists():
         raise FileNotFoundError(f"{where} does not exist")
+    _not_a_directory(path, where)
     with open(path, "rb") as f:  # one handle for the whole load
         meta, version, arrays = _read(f, where)
         generation = _generation(meta, where)
@@ -492,7 +511,10 @@ def _gain_of(g, n_basis: int) -> ConditioningGain | None:
                              f"{n_basis} robot basis functions")
         if not all(type(v) in (int, float) for row in rows for v in row):
             raise ValueError(f"gain {name} holds something other than numbers")
-    return ConditioningGain(np.array(g["normal"], dtype=float), np.array(g["target"], dtype=float), g["count"])
+    gain = ConditioningGain(np.array(g["normal"], dtype=float), np.array(g["target"], dtype=float), g["count"])
+    with np.errstate(over="ignore", invalid="ignore"):
+        gain.gains()   # the fit every prediction asks for: a record that overflows it is refused here
+    return gain
 
 
 def _consistent(where: str, *args) -> LibraryState:

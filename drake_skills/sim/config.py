@@ -244,7 +244,7 @@ def load_config(path: Union[str, Path, None] = None, *, defaults: Optional[SimCo
     path = Path(path)
     where = f"config '{path}'"
     if not path.is_file():
-        raise FileNotFoundError(f"{where} does not exist")
+        raise FileNotFoundError(f"{where} " + ("is a directory, not a YAML file" if path.is_dir() else "does not exist"))
     try:
         root = yaml_load(filename=str(path))
         if root is None:

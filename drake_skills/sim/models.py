@@ -157,7 +157,7 @@ def load_scene_config(path: str | Path | None = None) -> SceneConfig:
     """
     path = Path(path) if path is not None else scene_config_path()
     if not path.is_file():
-        raise FileNotFoundError(f"scene config '{path}' does not exist")
+        raise FileNotFoundError(f"scene config '{path}' " + ("is a directory, not a YAML file" if path.is_dir() else "does not exist"))
     try:
         cfg = yaml_load_typed(schema=SceneConfig, filename=str(path))
     except RuntimeError as exc:

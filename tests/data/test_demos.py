@@ -137,3 +137,40 @@ def test_written_files_get_the_usual_permissions_not_owner_only(tmp_path):
     finally:
         os.umask(mask)
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporary files left
+
+
+def test_a_demonstration_owns_read_only_copies_and_leaves_the_callers_arrays_alone():
+    """The caller's arrays stay writable; writing to them (or to the array they view) changes nothing."""
+    base = np.zeros((20, 10))
+    base[:, 0] = np.linspace(0.0, 1.9, 20)
+    base[:, 1:4] = np.linspace(0.0, 0.3, 20)[:, None]
+    t, human, robot = base[:, 0], base[:, 1:4], base[:, 3:]
+    d = Demonstration(t, human, robot)
+    assert t.flags.writeable and human.flags.writeable and base.flags.writeable
+    before = (d.t.copy(), d.human.copy(), d.robot.copy())
+    base[:] = 7.0
+    for got, want in zip((d.t, d.human, d.robot), before):
+        np.testing.assert_array_equal(got, want)
+        assert not got.flags.writeable
+        with pytest.raises(ValueError):
+            got[0] = 1.0
+
+
+@pytest.mark.parametrize("what", ["t", "human", "robot"])
+def test_finite_values_whose_span_overflows_are_refused_with_the_units_hint(what):
+    """t from -1e308 to 1e308 has an infinite duration: refused here, not deep in the basis fit."""
+    t = np.linspace(0.0, 1.0, 10)
+    human = np.zeros((10, 3))
+    robot = np.zeros((10, 7))
+    arrays = dict(t=t, human=human, robot=robot)
+    a = arrays[what].copy()
+    a[0], a[-1] = -1e308, 1e308     # first and last sample (every column of a row)
+    arrays[what] = a
+    with pytest.raises(ValueError, match=rf"demo 'big': {what} spans more than the largest float.*units"):
+        Demonstration(arrays["t"], arrays["human"], arrays["robot"], name="big")
+
+
+def test_complex_samples_are_refused_not_cast():
+    """numpy would drop the imaginary part with a warning; a demonstration refuses them."""
+    with pytest.raises(ValueError, match="^demo 'c': human is complex; give real numbers$"):
+        Demonstration(np.linspace(0, 1, 10), np.zeros((10, 3)) + 1j, name="c")

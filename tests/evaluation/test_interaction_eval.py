@@ -133,6 +133,8 @@ def test_best_guess_is_the_best_explaining_component_else_the_most_probable_of_a
     unknown = Recognition(None, (5, 6, 7), np.array([0.2, 0.7, 0.1]), z, z, 3, "unknown", z, z)
     assert best_guess(unknown) == 6
     assert best_guess(Recognition(None, (), np.zeros(0), np.zeros(0), np.zeros(0), 3)) is None
+    pruned = Recognition(None, (5, 6, 7), z, z, z, 3, "unknown", z, z)   # no component scored: no guess
+    assert best_guess(pruned) is None
 
 
 def test_loo_trial_holds_the_interaction_out_and_cuts_it_at_a_share_of_its_samples():

@@ -41,14 +41,14 @@ def _two_equal(response_d2, *, d2_human=4.0, supports=(2.0, 2.0), risk=0.01, var
 
 
 def test_two_equally_likely_skills_that_answer_alike_are_one_decision():
-    lib, demo = _two_equal(0.97 * chi2.ppf(0.999, R))
+    lib, demo = _two_equal(0.97 * chi2.ppf(LibraryConfig().novelty_quantile, R))
     rec = lib.recognize(demo.human, observed_fraction=1.0)
     np.testing.assert_allclose(rec.posterior, [0.5, 0.5], rtol=1e-9)
     assert rec.status == "skill" and rec.component == 0
 
 
 def test_two_equally_likely_skills_that_answer_differently_are_undecided():
-    lib, demo = _two_equal(1.03 * chi2.ppf(0.999, R))
+    lib, demo = _two_equal(1.03 * chi2.ppf(LibraryConfig().novelty_quantile, R))
     rec = lib.recognize(demo.human, observed_fraction=1.0)
     np.testing.assert_allclose(rec.posterior, [0.5, 0.5], rtol=1e-9)
     assert rec.status == "undecided" and rec.component is None
@@ -62,9 +62,9 @@ def test_one_skill_is_decided_when_its_posterior_reaches_one_minus_the_decision_
     """Supports 3 and 1 at equal predictive distance: the posterior of 0 is p ~ 0.98 (prior 3:1, and 1 has the
     wider predictive Gaussian); a decision risk just above 1 - p accepts it, just below does not (responses far
     apart, so they do not count together)."""
-    lib, demo = _two_equal(4 * chi2.ppf(0.999, R), supports=(3.0, 1.0))
+    lib, demo = _two_equal(4 * chi2.ppf(LibraryConfig().novelty_quantile, R), supports=(3.0, 1.0))
     p = lib.recognize(demo.human, observed_fraction=1.0).posterior[0]
     assert 0.9 < p < 0.999
-    lib, demo = _two_equal(4 * chi2.ppf(0.999, R), supports=(3.0, 1.0), risk=factor * (1 - p))
+    lib, demo = _two_equal(4 * chi2.ppf(LibraryConfig().novelty_quantile, R), supports=(3.0, 1.0), risk=factor * (1 - p))
     rec = lib.recognize(demo.human, observed_fraction=1.0)
     assert rec.status == status and rec.component == (0 if status == "skill" else None)

@@ -20,7 +20,8 @@ from synthetic import synthetic_demo
 
 SMALL = dict(n_samples=30, n_basis_human=5, n_basis_robot=5, delete_min_age=1000)
 H = 15  # 3-D human, 5 basis functions
-THR = chi2.ppf(0.999, H)  # 37.7, the default novelty quantile
+Q = LibraryConfig().novelty_quantile  # the default novelty quantile
+THR = chi2.ppf(Q, H)  # 39.7 at 0.9995
 
 
 def _at_distance(d2s, *, supports=None, robot=False, var=1.0, **cfg_kw):
@@ -106,7 +107,7 @@ def test_recognition_reports_log_densities_distances_and_responsibilities():
 
 def test_component_is_the_most_responsible_among_those_the_motion_is_not_novel_for():
     """A heavy component 0 takes most of the responsibility although the motion is novel for it (d^2 = 40 >
-    37.7); component 1 explains it (d^2 = 1): the answer is 1, not unknown and not 0."""
+    39.7); component 1 explains it (d^2 = 1): the answer is 1, not unknown and not 0."""
     lib, demo, _, _ = _at_distance([40.0, 1.0], supports=[1e9, 1.0])
     rec = lib.recognize(demo.human, observed_fraction=1.0)
     assert rec.responsibilities[0] > 0.99

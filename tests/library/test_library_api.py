@@ -30,15 +30,19 @@ def _lib(n=6, tasks=(0, 1), robot=True, seed=0, **cfg):
 
 
 # ------------------------------------------------------------------------------ configuration
-def test_config_integer_fields_and_their_lower_bounds():
+def test_config_integer_fields_and_their_bounds():
     cfg = LibraryConfig(n_samples=4.0, n_basis_human=2, n_basis_robot=2, merge_min_age=0, delete_min_age=0)
     assert (cfg.n_samples, cfg.n_basis_human, cfg.n_basis_robot, cfg.merge_min_age, cfg.delete_min_age) == (4, 2, 2, 0, 0)
     assert type(cfg.n_samples) is int
-    for name, lo in [("n_samples", 4), ("n_basis_human", 2), ("n_basis_robot", 2), ("merge_min_age", 0),
-                     ("delete_min_age", 0)]:
+    for name, lo in [("merge_min_age", 0), ("delete_min_age", 0)]:
         _raises(f"LibraryConfig.{name} must be an integer >= {lo}, got {lo - 1}", LibraryConfig, **{name: lo - 1})
         _raises(f"LibraryConfig.{name} must be an integer >= {lo}, got {lo + 0.5}", LibraryConfig,
                 **{name: lo + 0.5})
+    # sizes have an upper bound too: a typo or a corrupt file's metadata must not ask for gigabytes
+    for name, lo, hi in [("n_samples", 4, 100_000), ("n_basis_human", 2, 200), ("n_basis_robot", 2, 200)]:
+        for bad in (lo - 1, lo + 0.5, hi + 1, 10**12):
+            _raises(f"LibraryConfig.{name} must be an integer in {lo}..{hi}, got {bad}", LibraryConfig, **{name: bad})
+        assert getattr(LibraryConfig(**{name: hi}), name) == hi
 
 
 @pytest.mark.parametrize("name", ["basis_width", "prior_scale", "prior_strength", "expert_prior",
@@ -126,6 +130,9 @@ def test_component_views_ids_weights_and_lookup():
     assert c1.cov.flags.writeable is False and c1.mean.flags.writeable is False
     _raises("'no component with id 9; ids are [0, 1, 2]'", lib.component, 9, exc=KeyError)
     _raises("'no component with id 9; ids are [0, 1, 2]'", lib.predict_robot, np.eye(3), component=9, exc=KeyError)
+    for bad in ("0", True, 1.0):   # a cold review found True taken as component 1
+        _raises(repr(f"component ids are integers, got {bad!r}; ids are [0, 1, 2]"), lib.predict_robot, np.eye(3),
+                component=bad, exc=KeyError)
     history = lib.history
     history[0]["event"] = "changed"  # a copy: the library's history is not touched
     assert lib.history[0]["event"] == "created"
@@ -236,8 +243,9 @@ def test_recognize_input_messages():
     _raises("human must have 2 dimension(s), got shape (30,)", lib.recognize, human[:, 0])
     _raises("human is too short: 1 sample(s), need at least 2", lib.recognize, human[:1])
     _raises("human trajectory does not move: its path length is 0", lib.recognize, np.ones((5, 3)))
-    for f in (0.0, 1.5, -0.2):
-        _raises(f"observed_fraction must be in (0, 1], got {f!r}", lib.recognize, human, observed_fraction=f)
+    for f in (0.0, 1.5, -0.2, "a", True, float("nan"), [0.5]):
+        _raises(f"observed_fraction must be a number in (0, 1], got {f!r}", lib.recognize, human, observed_fraction=f)
+        _raises(f"observed_fraction must be a number in (0, 1], got {f!r}", lib.predict_robot, human, f)
     assert lib.recognize(human[:2]).status in ("skill", "undecided", "unknown")  # two samples are enough
     assert lib.recognize(human, observed_fraction=1).dof == 15
     assert lib.recognize(human, observed_fraction=1).component == lib.recognize(human).component

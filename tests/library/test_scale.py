@@ -56,7 +56,10 @@ def _learn_both(demos, config=None):
         got = lib.partial_fit(d)
         for key in ("recognized", "created", "updated", "merged", "split", "deleted", "subcluster"):
             assert getattr(got, key) == expect[key], key
-        assert dict(got.responsibilities) == expect["responsibilities"]
+        # the same to rounding (sums in another order: 1e-15 apart; 1e-12 asserted)
+        assert set(got.responsibilities) == set(expect["responsibilities"])
+        for k, v in got.responsibilities.items():
+            assert abs(v - expect["responsibilities"][k]) <= 1e-12, (k, v, expect["responsibilities"][k])
     return lib, ref
 
 
@@ -81,7 +84,9 @@ def test_partial_fit_matches_the_reference_through_merges_splits_and_deletions(l
     """12 letters, a wide prior (early merges that split later) and a short deletion age: every branch agrees."""
     demos, ws = letters
     order = np.random.default_rng(1).permutation(len(demos))
-    cfg = LibraryConfig(workspace=ws, prior_scale=0.6, delete_min_age=2)
+    # The quantile is pinned: with it every branch occurs in this order (the default's wider
+    # threshold gives no split here); the comparison with the reference is what is tested.
+    cfg = LibraryConfig(workspace=ws, prior_scale=0.6, delete_min_age=2, novelty_quantile=0.999)
     lib, ref = _learn_both([demos[j] for j in order], cfg)
     events = {e["event"] for e in lib.history}
     assert {"created", "merged", "split", "deleted"} <= events, events

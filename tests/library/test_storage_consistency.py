@@ -66,16 +66,17 @@ def test_inconsistent_dimensions_and_sums_are_rejected_naming_the_file_and_the_r
 
 
 def test_a_file_declaring_huge_arrays_is_refused_before_anything_is_allocated(lib, tmp_path, monkeypatch):
-    """A 4 MB file whose metadata declares 1.2 GB of arrays: refused from the metadata, no array read."""
+    """A few-MB file whose metadata declares over 1 GiB of arrays: refused from the metadata, no array read."""
     good = tmp_path / "good.npz"
     lib.save(good)
     with np.load(good) as z:
         meta = json.loads(str(z["metadata"]))
     comp = meta["components"][0]
-    many = [dict(comp, id=i, subclusters=[dict(comp["subclusters"][0]), None]) for i in range(5_000)]
-    config = dict(meta["config"], n_basis_human=1000, n_basis_robot=1000)
-    _rewrite(good, tmp_path / "huge.npz", meta={"components": many, "next_id": 5_000, "config": config,
-                                               "dim_human": 3, "dim_robot": 7, "n_seen": 5_000,
+    K, d = 100, 3 * 200 + 7 * 200        # every scatter factor of full rank d: 100 x 32 MB
+    many = [dict(comp, id=i, rank=d, subclusters=[dict(comp["subclusters"][0]), None]) for i in range(K)]
+    config = dict(meta["config"], n_basis_human=200, n_basis_robot=200)   # the largest a config accepts
+    _rewrite(good, tmp_path / "huge.npz", meta={"components": many, "next_id": K, "config": config,
+                                               "dim_human": 3, "dim_robot": 7, "n_seen": K,
                                                "gain": None})  # (a gain of the old basis would be refused first)
     assert (tmp_path / "huge.npz").stat().st_size < 10 * 2 ** 20
     read = []

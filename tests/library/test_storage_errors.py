@@ -210,6 +210,13 @@ CASES = {
                                        ">= 0, got -2)"),
     "scale_n_negative": (lambda m, a: m["scale"].update(n=-1), ": component metadata is bad (ValueError: scale n "
                                                               "must be an integer >= 0, got -1)"),
+    "beginnings_text": (_comp(0, beginnings="x"), ": component metadata is bad (ValueError: beginnings must be an "
+                                                  "object of lists of numbers (tested, missed, pending), got 'x')"),
+    "beginnings_strings": (_comp(0, beginnings={"tested": ["a"]}),
+                           ": component metadata is bad (ValueError: beginnings must be an object of lists of "
+                           "numbers (tested, missed, pending), got {'tested': ['a']})"),
+    "next_id_huge": (_meta(next_id=2 ** 63 + 5), ": bad metadata (ValueError: next_id must be at most 2**53, got "
+                                                 "9223372036854775813)"),
     "pooled_asymmetric": (_array("pooled", _asym), ": the pooled scatter is not symmetric"),
     "duplicate_id": (_second_ids, ": component id 1 is duplicated or out of range (next id 4)"),
     "id_at_next_id": (_comp(0, id=4), ": component id 4 is duplicated or out of range (next id 4)"),
@@ -242,6 +249,20 @@ def test_the_good_file_rewritten_unchanged_loads(good, tmp_path):
     p = tmp_path / "same.npz"
     np.savez(p, metadata=np.array(json.dumps(meta)), **arrays)
     assert SkillLibrary.load(p).state().next_id == 4
+
+
+def test_deeply_nested_metadata_and_a_directory_are_refused_with_the_path(good, tmp_path):
+    """A cold review found a RecursionError and an IsADirectoryError traceback here."""
+    _, arrays = _parts(good)
+    p = tmp_path / "deep.npz"
+    np.savez(p, metadata=np.array("[" * 100_000 + "]" * 100_000), **arrays)
+    with pytest.raises(ValueError, match="^" + re.escape(f"library file '{p}': metadata is nested too deeply")):
+        SkillLibrary.load(p)
+    d = tmp_path / "lib.npz"
+    d.mkdir()
+    with pytest.raises(ValueError, match="^" + re.escape(f"library file '{d}' is a directory; give the library's "
+                                                         f".npz file") + "$"):
+        SkillLibrary.load(d)
 
 
 def _zip_with(path, entries):

@@ -89,8 +89,10 @@ def test_bad_settings_are_errors_naming_the_file_and_the_field(tmp_path, text, m
 
 
 def test_missing_file_is_a_clear_error(tmp_path):
-    with pytest.raises(FileNotFoundError, match="nope.yaml"):
+    with pytest.raises(FileNotFoundError, match="nope.yaml' does not exist"):
         load_config(tmp_path / "nope.yaml")
+    with pytest.raises(FileNotFoundError, match=f"config '{tmp_path}' is a directory, not a YAML file"):
+        load_config(tmp_path)
 
 
 def test_the_library_file_keeps_a_config_read_from_yaml(tmp_path):
