@@ -13,6 +13,7 @@ can be re-run. 10 subjects x 2 seeds: ~45 s::
 
     .venv/bin/python benchmarks/demo_replay.py --subjects 1-10 --seeds 0,1
     .venv/bin/python benchmarks/demo_replay.py --end-phase 0    # without the rest rule
+    .venv/bin/python benchmarks/demo_replay.py --config my.yaml # other LibraryConfig settings
 """
 from __future__ import annotations
 
@@ -43,13 +44,20 @@ def main() -> int:
     ap.add_argument("--seeds", default="0,1", help="demo seeds (default 0,1)")
     ap.add_argument("--end-phase", type=float, default=None,
                     help="DecisionRule.end_phase (default: the SimConfig's; 0 turns the rest rule off)")
+    ap.add_argument("--config", default=None,
+                    help="a YAML file of LibraryConfig settings (as `drake-skills eval --config`; default: the defaults)")
     a = ap.parse_args()
+    from drake_skills.sim.config import load_library_config
+
+    library = load_library_config(a.config) if a.config else None
     tot = dict(trials=0, right=0, wrong=0, asked=0, new=0)
     first = {"taught": [0, 0], "untaught": [0, 0]}   # first commit right, wrong
     shares = []   # path share at the first commit of a skill executed right
     for subj in _ints(a.subjects):
         for seed in _ints(a.seeds):
             cfg = replace(load_config(None), seed=seed, subject=subj)
+            if library is not None:
+                cfg = replace(cfg, library=library)
             rule = cfg.decision if a.end_phase is None else replace(cfg.decision, end_phase=a.end_phase)
             data = generate_subject(cfg.subject, n_demos=cfg.demos_per_task, seed=cfg.seed, model=cfg.subject_model)
             ws = data.workspace(z_factor=cfg.z_factor)
