@@ -80,6 +80,15 @@ def chi2_ppf(q: float, dof):
             return _chi2_ppf(float(q), int(dof))
         return float(chi2.ppf(q, float(dof)))
     d = np.asarray(dof, float)
+    if d.size:
+        lo, hi = float(d.min()), float(d.max())
+        if np.isfinite(lo) and np.isfinite(hi) and hi - lo < 4096:
+            whole = d.astype(np.int64)
+            if np.array_equal(whole, d):
+                # Integer dof (every prefix test): a table over their range, indexed; no sort of
+                # the (K, J) array, whose size grows with the library.
+                table = np.array([_chi2_ppf(float(q), v) for v in range(int(lo), int(hi) + 1)])
+                return table[whole - int(lo)]
     values, inverse = np.unique(d, return_inverse=True)
     out = [_chi2_ppf(float(q), int(v)) if v == int(v) else float(chi2.ppf(q, v)) for v in values]
     return np.array(out)[inverse].reshape(d.shape)

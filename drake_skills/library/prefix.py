@@ -156,18 +156,26 @@ def fit_statistic(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarra
     m, D = y.shape
     phases = tuple(float(f) for f in phases)
     W, M, gam = fit_terms(basis, phases, int(m), chol, D, cache)
-    v = coordinates(y, phases, means_h, W, M, basis)                            # (J, K, h)
-    var = noise_var + np.asarray(inflate, float)[None, :, None] * gam[:, None, :]
-    d2 = np.sum(v * v / var, axis=2)          # the padding's columns are 0 in v (zero maps), var sigma^2 there
+    J, w = gam.shape
+    v = coordinates(y, phases, means_h, W, M, basis)                       # (K, J h), contiguous
+    var = np.asarray(inflate, float)[:, None] * gam.reshape(1, J * w)
+    var += noise_var
+    np.multiply(v, v, out=v)
+    np.divide(v, var, out=v)
+    # the padding's columns are 0 in v (zero maps), var sigma^2 there
+    d2 = np.ascontiguousarray((v.reshape(-1, w) @ np.ones(w)).reshape(-1, J).T)   # (J, K)
     dof = seen_dof(basis, phases, int(m), D)  # at least D: the best-seen direction always counts
     return d2, np.broadcast_to(dof[:, None], d2.shape).copy()
 
 
 def coordinates(y: np.ndarray, phases: tuple, means_h: np.ndarray, W: np.ndarray, M: np.ndarray,
-                basis: GaussianBasis) -> np.ndarray:
-    """The misfit's coordinates ``v = W_j^T H_j y - M_j^T mu_k`` of every component, shape (J, K, n).
+                     basis: GaussianBasis) -> np.ndarray:
+    """The misfit's coordinates ``v = W_j^T H_j y - M_j^T mu_k`` of every component at every phase.
 
     ``W``, ``M`` (J, h, n): :func:`fit_terms`' maps, all their columns or some of them.
+    Returns shape (K, J n), C-contiguous, per component: ``[k, j n + i]`` is coordinate ``i``
+    at phase ``j`` (laid out so that the statistics are contiguous products, not sums over a
+    short strided axis).
     """
     m, D = y.shape
     Phi = _basis_terms(basis, tuple(phases), int(m))[0]
@@ -175,8 +183,9 @@ def coordinates(y: np.ndarray, phases: tuple, means_h: np.ndarray, W: np.ndarray
     Hy = np.matmul(Phi.transpose(0, 2, 1), y).transpose(0, 2, 1).reshape(J, D * N)   # H y, dimension-major
     n = W.shape[2]
     Mt = M.transpose(1, 0, 2).reshape(D * N, J * n)                                 # one product for every phase
-    v = np.einsum("jh,jhn->jn", Hy, W).reshape(1, J * n) - means_h @ Mt
-    return v.reshape(-1, J, n).transpose(1, 0, 2)
+    v = means_h @ Mt
+    np.subtract(np.einsum("jh,jhn->jn", Hy, W).reshape(1, J * n), v, out=v)
+    return v
 
 
 def fit_terms(basis: GaussianBasis, phases: tuple, m: int, chol: np.ndarray, D: int, cache: dict | None = None,

@@ -43,3 +43,17 @@ def test_loglik_merge_threshold_grows_with_the_log_of_integer_supports_too():
     # the threshold of support 4 is 0.5 log 4 above that of support 1, for the same log p
     same = rule.merge_scores(np.array([3.0, 3.0]), np.array([1.0, 4.0]), np.array([2.0, 2.0]), 1.5, H)
     assert abs((same[1] - same[0]) - 0.5 * np.log(4.0)) < 1e-12  # score = threshold - log p: support makes a merge harder
+
+
+def test_chi2_ppf_of_an_array_equals_scipy_elementwise_for_integer_and_fractional_dof():
+    """The table lookup for integer dof (a prefix test's (K, J) array) gives scipy's quantiles, shape kept."""
+    from scipy.stats import chi2
+
+    dof = np.array([[3, 6, 21, 6], [1, 3, 3, 12]])
+    np.testing.assert_allclose(chi2_ppf(0.9995, dof), chi2.ppf(0.9995, dof), rtol=1e-12)
+    assert chi2_ppf(0.9995, dof).shape == (2, 4)
+    wide = np.broadcast_to(np.array([3.0, 9.0, 5000.0]), (50, 3))      # a range too wide for one table
+    np.testing.assert_allclose(chi2_ppf(0.99, wide), chi2.ppf(0.99, wide), rtol=1e-12)
+    mixed = np.array([2.5, 3.0, 7.0])
+    np.testing.assert_allclose(chi2_ppf(0.99, mixed), chi2.ppf(0.99, mixed), rtol=1e-12)
+    assert chi2_ppf(0.99, np.zeros((0, 4))).shape == (0, 4)
