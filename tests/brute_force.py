@@ -92,6 +92,10 @@ class Reference:
             metric = _metric(scale, h, cfg)
             logp, d2 = _scores(w[:h], self._means(items), self._support(items), metric)
             fits = ~rule.novel(logp, d2, h)
+            for k, c in enumerate(items):  # seen once, on a scale more prior than data: only within its quantile
+                if c.support < 1.5 and cfg.novelty_test == "chi2" and cfg.single_demo_quantile < 1 \
+                        and scale.dof < cfg.prior_strength and d2[k] > chi2_ppf(cfg.single_demo_quantile, h):
+                    fits[k] = False
             novel = not fits.any()
         if novel:
             cl = Cluster.of_sample(w, duration, path_length)
@@ -141,6 +145,10 @@ class Reference:
                     d2m = np.where(ages > cfg.merge_min_age, d2m, np.inf)
                 score = rule.merge_scores(d2m, np.maximum(support, support[i]), 1.0 / support + 1.0 / support[i],
                                           metric[2], h)
+                if cfg.novelty_test == "chi2" and cfg.single_demo_quantile < 1 and scale.dof < cfg.prior_strength:
+                    for j in range(len(items)):  # a pair with a component seen once: only within its quantile
+                        if min(support[i], support[j]) < 1.5 and d2m[j] > chi2_ppf(cfg.single_demo_quantile, h):
+                            score[j] = np.inf
                 ids = [c.id for c in items]
                 for j in np.flatnonzero(score < 0.0):  # every pair below the threshold; of equal scores the lowest ids
                     key = (float(score[j]), min(ids[i], ids[j]), max(ids[i], ids[j]))
@@ -200,6 +208,11 @@ class Reference:
         cfg = self.cfg
         support = self._support()
         fits = ~self.rule.novel(logp, d2, dof)
+        dofs = np.broadcast_to(dof, fits.shape)
+        for k in range(len(fits)):  # a component seen once explains a motion only within its quantile
+            if support[k] < 1.5 and cfg.novelty_test == "chi2" and cfg.single_demo_quantile < 1 \
+                    and self.scale.dof < cfg.prior_strength and d2[k] > chi2_ppf(cfg.single_demo_quantile, dofs[k]):
+                fits[k] = False
         resp = _resp(logp, support)
         post = _resp(logp, support, fits)
         ids = tuple(c.id for c in self.items)

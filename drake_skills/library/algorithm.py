@@ -35,7 +35,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from drake_skills.library.novelty import NoveltyRule
+from drake_skills.library.novelty import Chi2Rule, NoveltyRule, chi2_ppf
 from drake_skills.promp.gaussian import logsumexp
 from drake_skills.library.scale import BEGINNING_FRACTIONS, RECORD_TESTS, Cluster, SharedScale, gating_covariance
 from drake_skills.library.views import Responsibilities
@@ -43,6 +43,10 @@ from drake_skills.library.views import Responsibilities
 _LOG_2PI = np.log(2.0 * np.pi)
 #: Components whose responsibility reaches this are updated (and reported in ``Update.updated``).
 UPDATED_RESPONSIBILITY = 1e-3
+#: A component below this support has been learned from a single demonstration ("young"). While the
+#: shared scale is more prior than data, a demonstration joins it, another component merges with it
+#: and, at run time, it explains a motion only within ``LibraryConfig.single_demo_quantile``.
+YOUNG_SUPPORT = 1.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -282,6 +286,18 @@ class _Work:
         return Components._frozen(tuple(self.items), *(a[:self.n] for a in self._buffers()), bound_ref=self.bound_ref)
 
 
+def _young_limit(config, rule, h: int, scale: SharedScale) -> float | None:
+    """The distance within which a young component (:data:`YOUNG_SUPPORT`) takes a demonstration or merges.
+
+    None (no limit beyond the novelty and merge tests) once the shared scale is more data than
+    prior (pooled degrees of freedom ``nu >= prior_strength``), or with the rule off.
+    """
+    q = config.single_demo_quantile
+    if q >= 1 or not isinstance(rule, Chi2Rule) or scale.dof >= config.prior_strength:
+        return None
+    return chi2_ppf(q, h)
+
+
 def _grown(a: np.ndarray, rows: int) -> np.ndarray:
     """A writable copy of ``a`` with ``rows`` rows (the first ``len(a)`` are ``a``)."""
     out = np.empty((rows,) + a.shape[1:], dtype=a.dtype)
@@ -453,6 +469,9 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
         metric = metric_of(scale)
         logp, d2 = gating_scores(w[:h], comps, metric)
         fits = ~rule.novel(logp, d2, h)
+        young_limit = _young_limit(config, rule, h, scale)
+        if young_limit is not None:
+            fits &= ~((comps.support < YOUNG_SUPPORT) & (d2 > young_limit))
         novel = not fits.any()
     # 3. update
     if novel:
@@ -518,6 +537,10 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
                 d2m = np.where(ages > config.merge_min_age, d2m, np.inf)
             score = rule.merge_scores(d2m, np.maximum(work.support, work.support[i]),
                                       1.0 / work.support + 1.0 / work.support[i], metric.logdet, h)
+            young_limit = _young_limit(config, rule, h, scale)
+            if young_limit is not None:  # a pair with a component seen once merges only within its limit
+                young = (work.support < YOUNG_SUPPORT) | (work.support[i] < YOUNG_SUPPORT)
+                score = np.where(young & (d2m > young_limit), np.inf, score)
             j = int(np.argmin(score))
             tied = np.flatnonzero(score == score[j])
             if tied.size > 1:

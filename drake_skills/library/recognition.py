@@ -27,7 +27,7 @@ import numpy as np
 
 from drake_skills._checks import check_fraction, check_integer
 from drake_skills.data.workspace import Workspace
-from drake_skills.library.algorithm import ComponentModel, gating_scores, responsibilities
+from drake_skills.library.algorithm import YOUNG_SUPPORT, ComponentModel, gating_scores, responsibilities
 from drake_skills.library.gain import scale_correction
 from drake_skills.library.novelty import Chi2Rule, chi2_ppf
 from drake_skills.library.prefix import PHASE_GRID, phase_band, score_at_phase, score_component, score_prefix
@@ -74,7 +74,9 @@ class RecognitionMixin:
             "undecided" while a skill that would answer differently misses more than
             ``scale.BLIND_RATE`` (30 %) of its own demonstrations' beginnings at the share
             of its path this one covers (its record of beginnings; ``Recognition.blind``,
-            :meth:`_decide`).
+            :meth:`_decide`). While the shared scale is more prior than data, a component
+            learned from one demonstration explains a motion only within
+            ``LibraryConfig.single_demo_quantile`` (0.9), not ``novelty_quantile``.
         workspace : Workspace, optional
         normalized : bool
             ``human`` is already in the library's normalized units (Eq. 14 applied).
@@ -124,6 +126,13 @@ class RecognitionMixin:
         else:
             fits = np.zeros(len(comps), bool)
             fits[scored] = ~self._rule.novel(logp[scored], d2[scored], dof[scored])
+        q1 = self.config.single_demo_quantile
+        if q1 < 1 and isinstance(self._rule, Chi2Rule) and self._scale.dof < self.config.prior_strength:
+            # a component seen once, on a scale that is still more prior than data: only well inside
+            young = fits & (comps.support < YOUNG_SUPPORT)
+            if young.any():
+                k = np.flatnonzero(young)
+                fits[k] = d2[k] <= chi2_ppf(q1, np.broadcast_to(dof, fits.shape)[k])
         resp = responsibilities(logp, comps.support)
         post = responsibilities(logp, comps.support, fits)
         ids = comps.ids

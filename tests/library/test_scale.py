@@ -84,13 +84,28 @@ def test_partial_fit_matches_the_reference_through_merges_splits_and_deletions(l
     """12 letters, a wide prior (early merges that split later) and a short deletion age: every branch agrees."""
     demos, ws = letters
     order = np.random.default_rng(1).permutation(len(demos))
-    # The quantile is pinned: with it every branch occurs in this order (the default's wider
-    # threshold gives no split here); the comparison with the reference is what is tested.
-    cfg = LibraryConfig(workspace=ws, prior_scale=0.6, delete_min_age=2, novelty_quantile=0.999)
+    # The quantiles are pinned: with them every branch occurs in this order (the default's wider
+    # novelty threshold gives no split here, its single-demonstration rule no early merge); the
+    # comparison with the reference is what is tested.
+    cfg = LibraryConfig(workspace=ws, prior_scale=0.6, delete_min_age=2, novelty_quantile=0.999,
+                        single_demo_quantile=1.0)
     lib, ref = _learn_both([demos[j] for j in order], cfg)
     events = {e["event"] for e in lib.history}
     assert {"created", "merged", "split", "deleted"} <= events, events
     _assert_same_state(lib, ref)
+
+
+def test_partial_fit_matches_the_reference_where_components_seen_once_are_held_apart(letters):
+    """The same stream with the single-demonstration rule on: it changes the library, and the reference agrees."""
+    demos, ws = letters
+    order = np.random.default_rng(1).permutation(len(demos))
+    stream = [demos[j] for j in order]
+    off = LibraryConfig(workspace=ws, prior_scale=0.6, delete_min_age=2, novelty_quantile=0.999,
+                        single_demo_quantile=1.0)
+    lib, ref = _learn_both(stream, replace(off, single_demo_quantile=0.9))
+    _assert_same_state(lib, ref)
+    lib_off, _ = _learn_both(stream, off)
+    assert lib.history != lib_off.history, "the rule must act on this stream (its early merges)"
 
 
 def _assert_same_answer(rec, expect, *, exact_arrays=True):

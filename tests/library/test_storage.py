@@ -94,6 +94,21 @@ def test_a_file_written_before_adapt_to_noise_walks_plainly_and_a_new_one_keeps_
     assert [c.id for c in old.components] == [c.id for c in lib.components]
 
 
+def test_a_file_written_before_the_single_demonstration_rule_loads_without_it(lib, tmp_path):
+    """The key is optional: a file without it was learned with no such rule and keeps answering as it did."""
+    assert lib.config.single_demo_quantile == 0.9
+    new = tmp_path / "new.npz"
+    lib.save(new)
+    assert SkillLibrary.load(new).config.single_demo_quantile == 0.9
+    with np.load(new, allow_pickle=False) as z:
+        meta = json.loads(str(z["metadata"]))
+    del meta["config"]["single_demo_quantile"]
+    _rewrite(new, tmp_path / "before.npz", meta={"config": meta["config"]})
+    old = SkillLibrary.load(tmp_path / "before.npz")
+    assert old.config.single_demo_quantile == 1.0
+    assert [c.id for c in old.components] == [c.id for c in lib.components]
+
+
 def test_bad_files_give_clear_errors(lib, tmp_path):
     good = tmp_path / "good.npz"
     lib.save(good)

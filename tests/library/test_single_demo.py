@@ -1,0 +1,128 @@
+"""A component learned from one demonstration is trusted only within ``single_demo_quantile``.
+
+Its covariance is borrowed (the shared within-skill scale, or its prior while little is
+pooled), so at run time it explains a motion, in learning it takes a demonstration, and it
+merges with another component only within the chi-square ``single_demo_quantile`` of the
+distance, not the novelty or merge quantile, while the shared scale is more prior than data
+(pooled degrees of freedom below ``prior_strength``). A component seen twice (support >= 1.5),
+or any component on a scale learned from enough repeats, is not affected. Hand-set libraries
+(``library_states``) put a motion at a chosen distance between the two thresholds.
+"""
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+from drake_skills import LibraryConfig
+
+import library_states as ls
+from synthetic import synthetic_demo
+
+H = 15
+SMALL = dict(n_samples=30, n_basis_human=5, n_basis_robot=5, delete_min_age=1000)
+Q1 = 0.9
+D = 3 * 5 + 7 * 5
+YOUNG_SCALE = 1.0    # pooled degrees of freedom: below prior_strength (2), the scale is mostly prior
+
+
+def _config(q1):
+    return LibraryConfig(**SMALL, single_demo_quantile=q1)
+
+
+def _between(cfg):
+    """A whole-motion distance beyond chi2(Q1) and within the novelty and merge quantiles."""
+    lo, hi = chi2.ppf(Q1, H), chi2.ppf(min(cfg.novelty_quantile, cfg.merge_quantile), H)
+    assert hi > lo + 5
+    return 0.5 * (lo + hi)
+
+
+def _one_component(cfg, *, support, d2, dof=YOUNG_SCALE):
+    """A library of one component whose whole-motion distance to a demonstration's weights is ``d2``."""
+    rng = np.random.default_rng(0)
+    demo = synthetic_demo(0, rng, T=30)
+    w = ls.encode(cfg, demo)
+    scale = ls.iso_scale(D, 1.0, dof=dof)
+    S = ls.library(cfg, [], dim_human=3, dim_robot=7, scale=scale).shared_covariance("expert")
+    np.testing.assert_allclose(S[:H, :H], S[0, 0] * np.eye(H), rtol=0, atol=1e-12)
+    m = w.copy()
+    m[:H] += np.sqrt(d2 * S[0, 0] * (1 + 1 / support)) * np.eye(H)[0]
+    lib = ls.library(cfg, [ls.component(0, m, support=support, age=3)], dim_human=3, dim_robot=7, n_seen=3,
+                     scale=scale)
+    return lib, demo
+
+
+@pytest.mark.parametrize("q1, support, status", [(Q1, 1.0, "unknown"), (1.0, 1.0, "skill"), (Q1, 2.0, "skill")])
+def test_a_motion_between_the_thresholds_is_unknown_only_to_a_component_seen_once(q1, support, status):
+    cfg = _config(q1)
+    lib, demo = _one_component(cfg, support=support, d2=_between(cfg))
+    rec = lib.recognize(demo.human, observed_fraction=1.0)
+    np.testing.assert_allclose(rec.mahalanobis_sq[0], _between(cfg), rtol=1e-6)
+    assert rec.status == status
+
+
+def test_a_beginning_near_the_threshold_of_a_component_seen_once_is_unknown_under_the_stricter_quantile():
+    """The prefix test uses the same rule at its own degrees of freedom."""
+    cfg = _config(1.0)
+    lib, demo = _one_component(cfg, support=1.0, d2=8.0)
+    part = demo.human[: 2 * len(demo.human) // 3]
+    rec = lib.recognize(part)
+    assert rec.status == "skill"
+    d2, dof = float(rec.mahalanobis_sq[0]), float(np.broadcast_to(rec.dof, (1,))[0])
+    p = chi2.cdf(d2, dof)
+    assert 0.05 < p < 0.999, "the beginning must lie inside the novelty threshold, not at its centre"
+    for q1, status in ((0.5 * p, "unknown"), (0.5 * (1 + p), "skill")):
+        lib2, _ = _one_component(_config(q1), support=1.0, d2=8.0)
+        rec2 = lib2.recognize(part)
+        np.testing.assert_allclose(rec2.mahalanobis_sq[0], d2, rtol=1e-9)
+        assert rec2.status == status
+
+
+@pytest.mark.parametrize("q1, support, components", [(Q1, 1.0, 2), (1.0, 1.0, 1), (Q1, 2.0, 1)])
+def test_a_demonstration_between_the_thresholds_joins_only_a_component_seen_twice(q1, support, components):
+    cfg = _config(q1)
+    lib, demo = _one_component(cfg, support=support, d2=_between(cfg))
+    u = lib.partial_fit(demo)
+    assert lib.n_components == components
+    assert (len(u.created) == 1) == (components == 2)
+    assert not u.merged
+
+
+@pytest.mark.parametrize("q1, merged", [(Q1, False), (1.0, True)])
+def test_two_components_seen_once_merge_only_within_the_stricter_quantile(q1, merged):
+    """Two singletons at a two-sample distance between chi2(Q1) and the merge quantile; any step checks every pair."""
+    cfg = _config(q1)
+    rng = np.random.default_rng(0)
+    far = synthetic_demo(0, rng, T=30)
+    w = ls.encode(cfg, far)
+    scale = ls.iso_scale(D, 1.0, dof=YOUNG_SCALE)
+    S = ls.library(cfg, [], dim_human=3, dim_robot=7, scale=scale).shared_covariance("expert")
+    d2 = _between(cfg)
+    a = w.copy()
+    a[:H] += 40.0 * np.sqrt(S[0, 0]) * np.eye(H)[1]             # far from the demonstration that triggers the step
+    b = a.copy()
+    b[:H] += np.sqrt(d2 * S[0, 0] * 2.0) * np.eye(H)[0]          # two-sample distance d2 under Sigma (1/1 + 1/1)
+    lib = ls.library(cfg, [ls.component(0, a, support=1.0, age=3), ls.component(1, b, support=1.0, age=3)],
+                     dim_human=3, dim_robot=7, n_seen=3, scale=scale)
+    u = lib.partial_fit(far)
+    assert u.created, "the triggering demonstration is novel"
+    assert bool(u.merged) == merged
+    assert lib.n_components == (2 if merged else 3)
+
+
+def test_on_a_scale_learned_from_repeats_a_component_seen_once_is_judged_like_any_other():
+    """With pooled degrees of freedom at prior_strength the scale is more data than prior: no stricter test."""
+    cfg = _config(Q1)
+    assert cfg.prior_strength == 2.0
+    lib, demo = _one_component(cfg, support=1.0, d2=_between(cfg), dof=cfg.prior_strength)
+    assert lib.recognize(demo.human, observed_fraction=1.0).status == "skill"
+    assert not lib.partial_fit(demo).created
+    assert lib.n_components == 1
+
+
+def test_the_default_trusts_a_component_seen_once_only_within_its_0_9_quantile():
+    assert LibraryConfig().single_demo_quantile == 0.9
+
+
+@pytest.mark.parametrize("bad", [0.0, -0.1, 1.5, float("nan")])
+def test_single_demo_quantile_outside_0_1_is_refused(bad):
+    with pytest.raises(ValueError, match=r"single_demo_quantile must be in \(0, 1\] \(1: off\)"):
+        LibraryConfig(single_demo_quantile=bad)
