@@ -754,3 +754,26 @@ def test_recognize_keep_going_reports_the_good_files_and_lists_the_bad(learned, 
     assert sorted(r["file"] for r in rec["files"]) == ["bowl_03.npz", "tomato_03.npz"]
     assert [Path(f["path"]).name for f in rec["failed"]] == ["board_nan.csv"] and "NaN" in rec["failed"][0]["error"]
     assert {r["task"] for r in rec["files"]} == {"bowl", "tomato"}
+
+
+def test_recognize_names_the_components_learned_from_one_demonstration_and_their_stricter_limit(dataset, tmp_path,
+                                                                                              capsys):
+    """One demonstration per task: every component is young and the scale all prior, so the note says so."""
+    from scipy.stats import chi2
+
+    one = tmp_path / "one" / "subject1"
+    one.mkdir(parents=True)
+    for f in sorted((dataset / "train" / "subject1").iterdir()):
+        if f.name.endswith("_00.npz") or f.name == "calibration.npz":
+            shutil.copy(f, one / f.name)
+    assert main(["learn", str(tmp_path / "one"), "--out", str(tmp_path / "lib")]) == 0
+    lib = SkillLibrary.load(tmp_path / "lib" / "library.npz")
+    assert lib.n_components == len(TASKS) and all(c.support == 1.0 for c in lib.components)
+    capsys.readouterr()
+    assert main(["recognize", str(tmp_path / "lib" / "library.npz"), str(dataset / "held"),
+                 "--out", str(tmp_path / "rec")]) == 0
+    text = capsys.readouterr().out
+    ids = ", ".join(str(c.id) for c in lib.components)
+    H = lib.n_human
+    assert (f"and to a component learned from one demonstration ({ids}) beyond {chi2.ppf(0.9, H):.1f} for {H} dof "
+            f"(chi-square 0.9 quantile, single_demo_quantile)") in text, text

@@ -58,6 +58,16 @@ def _prefix(lib, human, fraction: float, ws):
     return human[:lo]
 
 
+def _young_components(lib) -> list[int]:
+    """Ids of the components the single-demonstration rule applies to now (``library.algorithm.YOUNG_SUPPORT``)."""
+    from drake_skills.library.algorithm import YOUNG_SUPPORT
+
+    cfg = lib.config
+    if cfg.single_demo_quantile >= 1 or cfg.novelty_test != "chi2" or lib.state().scale.dof >= cfg.prior_strength:
+        return []
+    return [c.id for c in lib.components if c.support < YOUNG_SUPPORT]
+
+
 def run(args: argparse.Namespace) -> int:
     from drake_skills import SkillLibrary
     from drake_skills.commands import WorkspaceFinder, clear_reports, scan_paths, short_name, tasks_file
@@ -125,6 +135,13 @@ def run(args: argparse.Namespace) -> int:
         print(f"d2: squared Mahalanobis distance to the best (or, if unknown, the nearest) component;\n"
               f"    a motion is unknown to a component beyond {limits} (chi-square {lib.config.novelty_quantile} "
               f"quantile)")
+        young = _young_components(lib)
+        if young:
+            q1 = lib.config.single_demo_quantile
+            strict = ", ".join(f"{chi2_ppf(q1, k):.1f} for {k} dof" for k in dofs)
+            print(f"    and to a component learned from one demonstration ({', '.join(map(str, young))}) beyond "
+                  f"{strict} (chi-square {q1} quantile, single_demo_quantile), while the library's scale is more "
+                  f"prior than data")
     counts = _counts(rows)
     if counts:
         print("labeled files: " + ", ".join(f"{v} {k}" for k, v in counts.items()))
