@@ -62,6 +62,12 @@ class NoveltyRule(Protocol):
         """Per component: do its two sub-clusters this far apart (two-sample distance) make two components?"""
 
 
+#: Integer dof spanning fewer values than this are looked up in a table over their range (every
+#: prefix test: 3-60); wider spans are computed per distinct value. Below the quantile cache's size,
+#: so that one call cannot flush it.
+_TABLE_SPAN = 64
+
+
 @lru_cache(maxsize=256)
 def _chi2_ppf(q: float, dof: int) -> float:
     return float(chi2.ppf(q, dof))
@@ -82,7 +88,7 @@ def chi2_ppf(q: float, dof):
     d = np.asarray(dof, float)
     if d.size:
         lo, hi = float(d.min()), float(d.max())
-        if np.isfinite(lo) and np.isfinite(hi) and hi - lo < 4096:
+        if np.isfinite(lo) and np.isfinite(hi) and hi - lo < _TABLE_SPAN:
             whole = d.astype(np.int64)
             if np.array_equal(whole, d):
                 # Integer dof (every prefix test): a table over their range, indexed; no sort of

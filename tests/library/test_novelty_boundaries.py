@@ -53,6 +53,8 @@ def test_chi2_ppf_of_an_array_equals_scipy_elementwise_for_integer_and_fractiona
     np.testing.assert_allclose(chi2_ppf(0.9995, dof), chi2.ppf(0.9995, dof), rtol=1e-12)
     assert chi2_ppf(0.9995, dof).shape == (2, 4)
     wide = np.broadcast_to(np.array([3.0, 9.0, 5000.0]), (50, 3))      # a range too wide for one table
+    from drake_skills.library import novelty
+    assert 5000 - 3 >= novelty._TABLE_SPAN
     np.testing.assert_allclose(chi2_ppf(0.99, wide), chi2.ppf(0.99, wide), rtol=1e-12)
     mixed = np.array([2.5, 3.0, 7.0])
     np.testing.assert_allclose(chi2_ppf(0.99, mixed), chi2.ppf(0.99, mixed), rtol=1e-12)

@@ -122,6 +122,28 @@ def test_the_default_trusts_a_component_seen_once_only_within_its_0_9_quantile()
     assert LibraryConfig().single_demo_quantile == 0.9
 
 
+@pytest.mark.parametrize("q1, merged", [(Q1, False), (1.0, True)])
+def test_a_component_seen_once_merges_with_an_established_one_only_within_the_stricter_quantile(q1, merged):
+    """Supports 3 and 1: one young member is enough to hold the pair to the single-demonstration limit."""
+    cfg = _config(q1)
+    rng = np.random.default_rng(0)
+    far = synthetic_demo(0, rng, T=30)
+    w = ls.encode(cfg, far)
+    scale = ls.iso_scale(D, 1.0, dof=YOUNG_SCALE)
+    S = ls.library(cfg, [], dim_human=3, dim_robot=7, scale=scale).shared_covariance("expert")
+    d2 = _between(cfg)
+    a = w.copy()
+    a[:H] += 40.0 * np.sqrt(S[0, 0]) * np.eye(H)[1]
+    b = a.copy()
+    b[:H] += np.sqrt(d2 * S[0, 0] * (1.0 + 1.0 / 3.0)) * np.eye(H)[0]   # two-sample distance d2 under Sigma (1/1 + 1/3)
+    lib = ls.library(cfg, [ls.component(0, a, support=3.0, age=3), ls.component(1, b, support=1.0, age=3)],
+                     dim_human=3, dim_robot=7, n_seen=4, scale=scale)
+    u = lib.partial_fit(far)
+    assert u.created, "the triggering demonstration is novel"
+    assert bool(u.merged) == merged
+    assert lib.n_components == (2 if merged else 3)
+
+
 @pytest.mark.parametrize("bad", [0.0, -0.1, 1.5, float("nan")])
 def test_single_demo_quantile_outside_0_1_is_refused(bad):
     with pytest.raises(ValueError, match=r"single_demo_quantile must be in \(0, 1\] \(1: off\)"):
