@@ -86,26 +86,36 @@ def test_a_demonstration_between_the_thresholds_joins_only_a_component_seen_twic
     assert not u.merged
 
 
-@pytest.mark.parametrize("q1, merged", [(Q1, False), (1.0, True)])
-def test_two_components_seen_once_merge_only_within_the_stricter_quantile(q1, merged):
-    """Two singletons at a two-sample distance between chi2(Q1) and the merge quantile; any step checks every pair."""
+def _pair_merges(q1, supports):
+    """Two components at a two-sample distance between chi2(Q1) and the merge quantile, far from a novel
+    demonstration whose step checks every pair: did they merge? (The library must end with 2 or 3.)"""
     cfg = _config(q1)
-    rng = np.random.default_rng(0)
-    far = synthetic_demo(0, rng, T=30)
+    far = synthetic_demo(0, np.random.default_rng(0), T=30)
     w = ls.encode(cfg, far)
     scale = ls.iso_scale(D, 1.0, dof=YOUNG_SCALE)
     S = ls.library(cfg, [], dim_human=3, dim_robot=7, scale=scale).shared_covariance("expert")
-    d2 = _between(cfg)
     a = w.copy()
     a[:H] += 40.0 * np.sqrt(S[0, 0]) * np.eye(H)[1]             # far from the demonstration that triggers the step
     b = a.copy()
-    b[:H] += np.sqrt(d2 * S[0, 0] * 2.0) * np.eye(H)[0]          # two-sample distance d2 under Sigma (1/1 + 1/1)
-    lib = ls.library(cfg, [ls.component(0, a, support=1.0, age=3), ls.component(1, b, support=1.0, age=3)],
-                     dim_human=3, dim_robot=7, n_seen=3, scale=scale)
+    inflate = 1.0 / supports[0] + 1.0 / supports[1]               # two-sample distance under Sigma (1/s_a + 1/s_b)
+    b[:H] += np.sqrt(_between(cfg) * S[0, 0] * inflate) * np.eye(H)[0]
+    comps = [ls.component(k, m, support=s, age=3) for k, (m, s) in enumerate(zip((a, b), supports))]
+    lib = ls.library(cfg, comps, dim_human=3, dim_robot=7, n_seen=4, scale=scale)
     u = lib.partial_fit(far)
     assert u.created, "the triggering demonstration is novel"
-    assert bool(u.merged) == merged
-    assert lib.n_components == (2 if merged else 3)
+    assert lib.n_components == (2 if u.merged else 3)
+    return bool(u.merged)
+
+
+@pytest.mark.parametrize("q1, merged", [(Q1, False), (1.0, True)])
+def test_two_components_seen_once_merge_only_within_the_stricter_quantile(q1, merged):
+    assert _pair_merges(q1, (1.0, 1.0)) == merged
+
+
+@pytest.mark.parametrize("q1, merged", [(Q1, False), (1.0, True)])
+def test_a_component_seen_once_merges_with_an_established_one_only_within_the_stricter_quantile(q1, merged):
+    """Supports 3 and 1: one young member is enough to hold the pair to the single-demonstration limit."""
+    assert _pair_merges(q1, (3.0, 1.0)) == merged
 
 
 def test_on_a_scale_learned_from_repeats_a_component_seen_once_is_judged_like_any_other():
@@ -120,28 +130,6 @@ def test_on_a_scale_learned_from_repeats_a_component_seen_once_is_judged_like_an
 
 def test_the_default_trusts_a_component_seen_once_only_within_its_0_9_quantile():
     assert LibraryConfig().single_demo_quantile == 0.9
-
-
-@pytest.mark.parametrize("q1, merged", [(Q1, False), (1.0, True)])
-def test_a_component_seen_once_merges_with_an_established_one_only_within_the_stricter_quantile(q1, merged):
-    """Supports 3 and 1: one young member is enough to hold the pair to the single-demonstration limit."""
-    cfg = _config(q1)
-    rng = np.random.default_rng(0)
-    far = synthetic_demo(0, rng, T=30)
-    w = ls.encode(cfg, far)
-    scale = ls.iso_scale(D, 1.0, dof=YOUNG_SCALE)
-    S = ls.library(cfg, [], dim_human=3, dim_robot=7, scale=scale).shared_covariance("expert")
-    d2 = _between(cfg)
-    a = w.copy()
-    a[:H] += 40.0 * np.sqrt(S[0, 0]) * np.eye(H)[1]
-    b = a.copy()
-    b[:H] += np.sqrt(d2 * S[0, 0] * (1.0 + 1.0 / 3.0)) * np.eye(H)[0]   # two-sample distance d2 under Sigma (1/1 + 1/3)
-    lib = ls.library(cfg, [ls.component(0, a, support=3.0, age=3), ls.component(1, b, support=1.0, age=3)],
-                     dim_human=3, dim_robot=7, n_seen=4, scale=scale)
-    u = lib.partial_fit(far)
-    assert u.created, "the triggering demonstration is novel"
-    assert bool(u.merged) == merged
-    assert lib.n_components == (2 if merged else 3)
 
 
 @pytest.mark.parametrize("bad", [0.0, -0.1, 1.5, float("nan")])
