@@ -60,10 +60,9 @@ def _prefix(lib, human, fraction: float, ws):
 
 def _young_components(lib) -> list[int]:
     """Ids of the components the single-demonstration rule applies to now (``library.algorithm.YOUNG_SUPPORT``)."""
-    from drake_skills.library.algorithm import YOUNG_SUPPORT
+    from drake_skills.library.algorithm import YOUNG_SUPPORT, single_demo_rule
 
-    cfg = lib.config
-    if cfg.single_demo_quantile >= 1 or cfg.novelty_test != "chi2" or lib.state().scale.dof >= cfg.prior_strength:
+    if single_demo_rule(lib.config, lib.state().scale) is None:
         return []
     return [c.id for c in lib.components if c.support < YOUNG_SUPPORT]
 

@@ -35,7 +35,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from drake_skills.library.novelty import Chi2Rule, NoveltyRule, chi2_ppf
+from drake_skills.library.novelty import NoveltyRule, chi2_ppf
 from drake_skills.promp.gaussian import logsumexp
 from drake_skills.library.scale import BEGINNING_FRACTIONS, RECORD_TESTS, Cluster, SharedScale, gating_covariance
 from drake_skills.library.views import Responsibilities
@@ -286,16 +286,24 @@ class _Work:
         return Components._frozen(tuple(self.items), *(a[:self.n] for a in self._buffers()), bound_ref=self.bound_ref)
 
 
-def _young_limit(config, rule, h: int, scale: SharedScale) -> float | None:
-    """The distance within which a young component (:data:`YOUNG_SUPPORT`) takes a demonstration or merges.
+def single_demo_rule(config, scale: SharedScale) -> float | None:
+    """The chi-square quantile a young component (:data:`YOUNG_SUPPORT`) is held to now, or None.
 
     None (no limit beyond the novelty and merge tests) once the shared scale is more data than
-    prior (pooled degrees of freedom ``nu >= prior_strength``), or with the rule off.
+    prior (pooled degrees of freedom ``nu >= prior_strength``), with the rule off
+    (``single_demo_quantile`` 1) or with the log-likelihood test. Learning, recognition and
+    ``drake-skills recognize`` ask this one function.
     """
     q = config.single_demo_quantile
-    if q >= 1 or not isinstance(rule, Chi2Rule) or scale.dof >= config.prior_strength:
+    if q >= 1 or config.novelty_test != "chi2" or scale.dof >= config.prior_strength:
         return None
-    return chi2_ppf(q, h)
+    return q
+
+
+def _young_limit(config, h: int, scale: SharedScale) -> float | None:
+    """The whole-motion distance within which a young component takes a demonstration or merges (None: no limit)."""
+    q = single_demo_rule(config, scale)
+    return None if q is None else chi2_ppf(q, h)
 
 
 def _grown(a: np.ndarray, rows: int) -> np.ndarray:
@@ -469,7 +477,7 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
         metric = metric_of(scale)
         logp, d2 = gating_scores(w[:h], comps, metric)
         fits = ~rule.novel(logp, d2, h)
-        young_limit = _young_limit(config, rule, h, scale)
+        young_limit = _young_limit(config, h, scale)
         if young_limit is not None:
             fits &= ~((comps.support < YOUNG_SUPPORT) & (d2 > young_limit))
         novel = not fits.any()
@@ -518,6 +526,7 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
     #    the merge limit find every pair that can merge; the result is that of scoring every pair.
     while len(work.items) > 1:
         metric = metric_of(scale)
+        young_limit = _young_limit(config, h, scale)
         bound = work.merge_bound
         if work.bound_ref is not metric.inv_chol:
             bound *= distance_shrink(work.bound_ref, metric)
@@ -537,7 +546,6 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
                 d2m = np.where(ages > config.merge_min_age, d2m, np.inf)
             score = rule.merge_scores(d2m, np.maximum(work.support, work.support[i]),
                                       1.0 / work.support + 1.0 / work.support[i], metric.logdet, h)
-            young_limit = _young_limit(config, rule, h, scale)
             if young_limit is not None:  # a pair with a component seen once merges only within its limit
                 young = (work.support < YOUNG_SUPPORT) | (work.support[i] < YOUNG_SUPPORT)
                 score = np.where(young & (d2m > young_limit), np.inf, score)

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from drake_skills.library.novelty import chi2_ppf
-from drake_skills.library.prefix import coordinates, fit_terms, seen_dof
+from drake_skills.library.prefix import fit_terms, misfit_d2, seen_dof
 from drake_skills.promp.basis import GaussianBasis
 
 #: Directions per dimension the bound looks at: the ones the samples see best.
@@ -61,15 +61,7 @@ def fit_lower_bounds(ys: np.ndarray, phases, means_h: np.ndarray, inflate: np.nd
     phases = tuple(float(f) for f in phases)
     s = max(1, int(n_directions))
     W, M, gam = fit_terms(basis, phases, int(m), chol, D, cache, most=s)
-    J, w = gam.shape
-    # Laid out (K, J w), contiguous, in place: a (J, K, w) layout and a sum over its short last
-    # axis cost 2-3x more at K = 1000 than the products themselves.
-    v = coordinates(ys, phases, means_h, W, M, basis)                             # (K, J w)
-    var = np.asarray(inflate, float)[:, None] * gam.reshape(1, J * w)
-    var += noise_var
-    np.multiply(v, v, out=v)
-    np.divide(v, var, out=v)
-    bound = (v.reshape(-1, w) @ np.ones(w)).reshape(-1, J)   # (K, J); the padding's columns are 0 in v (zero maps)
+    bound = misfit_d2(ys, phases, means_h, inflate, W, M, gam, basis, noise_var)   # (K, J)
     dof = seen_dof(basis, phases, int(m), D)
     return bound, np.broadcast_to(dof[None, :], bound.shape).copy()
 

@@ -27,7 +27,8 @@ import numpy as np
 
 from drake_skills._checks import check_fraction, check_integer
 from drake_skills.data.workspace import Workspace
-from drake_skills.library.algorithm import YOUNG_SUPPORT, ComponentModel, gating_scores, responsibilities
+from drake_skills.library.algorithm import (YOUNG_SUPPORT, ComponentModel, gating_scores, responsibilities,
+                                           single_demo_rule)
 from drake_skills.library.gain import scale_correction
 from drake_skills.library.novelty import Chi2Rule, chi2_ppf
 from drake_skills.library.prefix import PHASE_GRID, phase_band, score_at_phase, score_component, score_prefix
@@ -126,9 +127,8 @@ class RecognitionMixin:
         else:
             fits = np.zeros(len(comps), bool)
             fits[scored] = ~self._rule.novel(logp[scored], d2[scored], dof[scored])
-        q1 = self.config.single_demo_quantile
-        if q1 < 1 and isinstance(self._rule, Chi2Rule) and self._scale.dof < self.config.prior_strength:
-            # a component seen once, on a scale that is still more prior than data: only well inside
+        q1 = single_demo_rule(self.config, self._scale)
+        if q1 is not None:  # a component seen once, on a scale that is still more prior than data: only well inside
             young = fits & (comps.support < YOUNG_SUPPORT)
             if young.any():
                 k = np.flatnonzero(young)
