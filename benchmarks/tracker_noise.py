@@ -1,4 +1,4 @@
-"""How the library copes with tracker noise, with and without ``LibraryConfig.adapt_to_noise``.
+"""How the library copes with tracker noise, with and without ``LibraryConfig.adapt_to_noise`` and ``average_holds``.
 
 Not a speed benchmark: the experiment behind RESULTS.md's "Tracker noise", kept so that it can
 be re-run. White noise (per axis, metres for buetepage, millimetres for LASA) is added to every
@@ -29,6 +29,10 @@ from drake_skills.data.demonstration import Demonstration
 from drake_skills.library.config import LibraryConfig
 
 
+#: The walks compared: name -> (column title, LibraryConfig settings).
+VARIANTS = {"plain": ("plain walk", {"adapt_to_noise": False}),
+            "points": ("adapted, vertices at samples", {"average_holds": False}),
+            "adapted": ("adapted, holds averaged (default)", {})}
 #: Glitches: (share of the frames that start one, size in the data's units, frames per glitch).
 GLITCHES = (0.0, 0.0, 1)
 
@@ -105,6 +109,9 @@ def main(argv=None) -> None:
     p.add_argument("--glitches", default=None, metavar="RATE,SIZE[,RUN]",
                    help="also add tracker glitches: a share RATE of the frames starts one, SIZE away (the noise's "
                         "units) in a random direction for RUN frames (default 1), e.g. 0.01,0.1")
+    p.add_argument("--variants", default=",".join(VARIANTS),
+                   help="comma-separated walks to compare: plain (adapt_to_noise off), points (adapted, every vertex "
+                        "a sample: average_holds off), adapted (the defaults); default all three")
     p.add_argument("--seed", type=int, default=None,
                    help="seed of the noise draw (default: 7 for buetepage, 3 for lasa, as in RESULTS.md)")
     a = p.parse_args(argv)
@@ -115,18 +122,21 @@ def main(argv=None) -> None:
             p.error(f"--glitches RATE,SIZE[,RUN] with 0 <= RATE < 1, SIZE >= 0 and an integer RUN >= 1, got {a.glitches!r}")
         global GLITCHES
         GLITCHES = (parts[0], parts[1], int(parts[2]) if len(parts) == 3 else 1)
-    print("| noise | plain walk: components / correct / wrong | adapt_to_noise |")
-    print("|---|---|---|")
+    names = [v for v in a.variants.split(",") if v]
+    bad = [v for v in names if v not in VARIANTS]
+    if bad or not names:
+        p.error(f"--variants: choose from {','.join(VARIANTS)}, got {a.variants!r}")
+    print("| noise | " + " | ".join(f"{VARIANTS[v][0]}: components / correct / wrong" for v in names) + " |")
+    print("|---|" + "---|" * len(names))
     for sigma in (float(x) for x in a.noise.split(",")):
         cells = []
-        for adapt in (False, True):
-            cfg = LibraryConfig(adapt_to_noise=adapt)
+        for v in names:
+            cfg = LibraryConfig(**VARIANTS[v][1])
             seed = a.seed if a.seed is not None else (7 if a.data == "buetepage" else 3)
             r = (buetepage(sigma, a.every, a.split, a.orders, cfg, seed) if a.data == "buetepage"
                  else lasa(sigma, a.half, a.orders, cfg, seed))
             cells.append(f"{r[0]:.1f} / {r[1]:.3f} / {r[2]:.3f}")
-        print(f"| {sigma:g} | {cells[0]} | {cells[1]} |", flush=True)
-
+        print(f"| {sigma:g} | " + " | ".join(cells) + " |", flush=True)
 
 if __name__ == "__main__":
     main()

@@ -423,6 +423,7 @@ def _state_of(meta: dict, version: int, arrays, where: str) -> LibraryState:
             cfg_meta.setdefault("ridge", 1e-6)
             cfg_meta.setdefault("n_basis_human", 10)
         cfg_meta.setdefault("adapt_to_noise", False)  # optional key: a file written before it walked plainly
+        cfg_meta.setdefault("average_holds", False)  # optional key: a file written before it walked holds plainly
         cfg_meta.setdefault("single_demo_quantile", 1.0)  # optional key: a file written before the rule had none
         config = LibraryConfig.from_dict(cfg_meta)
         comps_meta = list(meta["components"])

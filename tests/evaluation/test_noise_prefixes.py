@@ -23,15 +23,17 @@ def noisy():
 @pytest.mark.parametrize("fraction", [0.2, 0.5, 0.8])
 def test_prefix_end_and_observed_prefix_give_the_fraction_the_library_measures(noisy, fraction):
     """The library walks the prefix with its own noise estimate: its length over the whole's is the fraction
-    asked or just above (measured 0.2049, 0.5014, 0.8015; asserted within 0.015). Cut on the whole motion's
-    walk instead, as before, the library measured 0.316, 0.589 and 0.816."""
+    asked or just above (measured 0.2125, 0.5158, 0.8138; asserted within 0.02: a step of this walk, whose
+    tolerance has grown to 2.5 base tolerances (0.25 units) for the noise, is 3 % of its 8.3 units, and with
+    ``average_holds`` a prefix one sample longer can measure a little less, its last vertex a mean). Cut on the
+    whole motion's walk instead, as before, the library measured 0.316, 0.589 and 0.816."""
     human, ws = noisy
     lib = SkillLibrary(LibraryConfig(workspace=ws))
     whole = lib.path_length(human)
     m = prefix_end(human, ws, fraction, lib.config.resample_tolerance)
     share = lib.path_length(human[:m]) / whole
-    assert fraction * (1 - 1e-9) <= share <= fraction + 0.015
+    assert fraction * (1 - 1e-9) <= share <= fraction + 0.02
     p = observed_prefix(human, fraction, ws, lib.config.resample_tolerance)
-    assert fraction * (1 - 1e-9) <= lib.path_length(p) / whole <= fraction + 0.015
+    assert fraction * (1 - 1e-9) <= lib.path_length(p) / whole <= fraction + 0.02
     # the defaults of both are the library's default (adapt_to_noise on)
     assert m == prefix_end(human, ws, fraction, lib.config.resample_tolerance, adapt_to_noise=True)

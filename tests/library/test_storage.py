@@ -79,73 +79,26 @@ def _rewrite(src, dst, **changes):
     np.savez(dst, **arrays)
 
 
-def test_a_file_written_before_adapt_to_noise_walks_plainly_and_a_new_one_keeps_it(lib, tmp_path):
-    """The key is optional: a schema-3 file without it loads with the plain walk it was learned with."""
-    assert lib.config.adapt_to_noise is True
+@pytest.mark.parametrize("key, now, before", [
+    ("adapt_to_noise", True, False),        # learned with the plain walk
+    ("average_holds", True, False),         # its noisy motions walked with a vertex per noisy sample
+    ("single_demo_quantile", 0.9, 1.0),     # learned with no single-demonstration rule
+])
+def test_a_file_written_before_an_optional_key_loads_as_it_was_learned_and_a_new_one_keeps_it(lib, tmp_path, key,
+                                                                                              now, before):
+    """The keys newer than schema 3 are optional: a file without one loads with the behaviour it was learned
+    with (and keeps its components); a file written now keeps today's value."""
+    assert getattr(lib.config, key) == now
     new = tmp_path / "new.npz"
     lib.save(new)
-    assert SkillLibrary.load(new).config.adapt_to_noise is True
+    assert getattr(SkillLibrary.load(new).config, key) == now
     with np.load(new, allow_pickle=False) as z:
         meta = json.loads(str(z["metadata"]))
-    del meta["config"]["adapt_to_noise"]
+    del meta["config"][key]
     _rewrite(new, tmp_path / "before.npz", meta={"config": meta["config"]})
     old = SkillLibrary.load(tmp_path / "before.npz")
-    assert old.config.adapt_to_noise is False
+    assert getattr(old.config, key) == before and type(getattr(old.config, key)) is type(now)
     assert [c.id for c in old.components] == [c.id for c in lib.components]
-
-
-def test_a_file_written_before_the_single_demonstration_rule_loads_without_it(lib, tmp_path):
-    """The key is optional: a file without it was learned with no such rule and keeps answering as it did."""
-    assert lib.config.single_demo_quantile == 0.9
-    new = tmp_path / "new.npz"
-    lib.save(new)
-    assert SkillLibrary.load(new).config.single_demo_quantile == 0.9
-    with np.load(new, allow_pickle=False) as z:
-        meta = json.loads(str(z["metadata"]))
-    del meta["config"]["single_demo_quantile"]
-    _rewrite(new, tmp_path / "before.npz", meta={"config": meta["config"]})
-    old = SkillLibrary.load(tmp_path / "before.npz")
-    assert old.config.single_demo_quantile == 1.0
-    assert [c.id for c in old.components] == [c.id for c in lib.components]
-
-
-def test_bad_files_give_clear_errors(lib, tmp_path):
-    good = tmp_path / "good.npz"
-    lib.save(good)
-    data = good.read_bytes()
-    cases = {}
-    (tmp_path / "truncated.npz").write_bytes(data[: len(data) // 2])
-    cases["truncated.npz"] = "truncated"
-    (tmp_path / "text.npz").write_text("hello")
-    cases["text.npz"] = "truncated or not an .npz"
-    np.savez(tmp_path / "foreign.npz", x=np.arange(3))
-    cases["foreign.npz"] = "not a drake-skills library"
-    _rewrite(good, tmp_path / "newer.npz", meta={"schema_version": storage.SCHEMA_VERSION + 1})
-    cases["newer.npz"] = "newer"
-    with np.load(good) as z:
-        pooled = z["pooled"].copy()
-        means = z["means"].copy()
-        factors = z["factors"].copy()
-    pooled[0, 1] += 1.0
-    _rewrite(good, tmp_path / "asym.npz", pooled=pooled)
-    cases["asym.npz"] = "not symmetric"
-    means[1, 2] = np.nan
-    _rewrite(good, tmp_path / "nan.npz", means=means)
-    cases["nan.npz"] = "NaN"
-    _rewrite(good, tmp_path / "shape.npz", means=means[:, :-1])
-    cases["shape.npz"] = "has shape"
-    _rewrite(good, tmp_path / "rank.npz", factors=factors[:, :-1])
-    cases["rank.npz"] = "'factors' has shape"
-    _rewrite(good, tmp_path / "format.npz", meta={"format": "something else"})
-    cases["format.npz"] = "not a drake-skills library"
-    np.savez(tmp_path / "pickled.npz", metadata=np.array([{"a": 1}], dtype=object), means=means)
-    cases["pickled.npz"] = "Python objects"
-    for name, msg in cases.items():
-        with pytest.raises(ValueError, match=msg) as e:
-            SkillLibrary.load(tmp_path / name)
-        assert name in str(e.value)
-    with pytest.raises(FileNotFoundError):
-        SkillLibrary.load(tmp_path / "missing.npz")
 
 
 def test_empty_library_round_trips(tmp_path):
@@ -160,6 +113,7 @@ def _dense_file(lib, path, version):
     cfg = lib.config.dict()
     cfg.update(sigma_init_human=0.5, sigma_init_robot=0.1, gating_floor=1.0, fast_forgetting=True)
     cfg.pop("adapt_to_noise")  # newer than schema 3
+    cfg.pop("average_holds")
     if version < 2:
         cfg.pop("resample_tolerance")
     comps = lib.components
@@ -178,7 +132,7 @@ def test_schema_1_and_2_files_load_with_their_representation_and_the_same_answer
         _dense_file(lib, p, version)
         old = SkillLibrary.load(p)
         assert old.config.resample_tolerance == (0.0 if version == 1 else lib.config.resample_tolerance)
-        assert old.config.adapt_to_noise is False
+        assert old.config.adapt_to_noise is False and old.config.average_holds is False
         assert [c.id for c in old.components] == [c.id for c in lib.components]
         for a, b in zip(old.components, lib.components):
             np.testing.assert_allclose(a.mean, b.mean)
