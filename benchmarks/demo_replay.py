@@ -14,6 +14,7 @@ can be re-run. 10 subjects x 2 seeds: ~45 s::
     .venv/bin/python benchmarks/demo_replay.py --subjects 1-10 --seeds 0,1
     .venv/bin/python benchmarks/demo_replay.py --end-phase 0    # without the rest rule
     .venv/bin/python benchmarks/demo_replay.py --config my.yaml # other LibraryConfig settings
+    .venv/bin/python benchmarks/demo_replay.py --why            # each wrong first commit, and by nu
 """
 from __future__ import annotations
 
@@ -46,12 +47,16 @@ def main() -> int:
                     help="DecisionRule.end_phase (default: the SimConfig's; 0 turns the rest rule off)")
     ap.add_argument("--config", default=None,
                     help="a YAML file of LibraryConfig settings (as `drake-skills eval --config`; default: the defaults)")
+    ap.add_argument("--why", action="store_true",
+                    help="print every wrong first commit on a taught task: trial, the shared scale's pooled dof nu, "
+                         "the supports of the committed component and of the true task's, the path share")
     a = ap.parse_args()
     from drake_skills.sim.config import load_library_config
 
     library = load_library_config(a.config) if a.config else None
     tot = dict(trials=0, right=0, wrong=0, asked=0, new=0)
     first = {"taught": [0, 0], "untaught": [0, 0]}   # first commit right, wrong
+    by_nu = []    # (nu, first commit wrong, its component's support) per first commit on a taught task
     shares = []   # path share at the first commit of a skill executed right
     for subj in _ints(a.subjects):
         for seed in _ints(a.seeds):
@@ -71,6 +76,18 @@ def main() -> int:
                     comp, commits = g.component, g.commits
                 if commits:
                     first["taught" if d.task in taught else "untaught"][label.get(commits[0]) != d.task] += 1
+                    if a.why and d.task in taught:
+                        by_nu.append((lib.state().scale.dof, label.get(commits[0]) != d.task,
+                                      lib.component(commits[0]).support))
+                        prior_strength = lib.config.prior_strength
+                    if a.why and d.task in taught and label.get(commits[0]) != d.task:
+                        own = [c.support for c in lib.components if label.get(c.id) == d.task]
+                        share = commit_share(d, ws, lib.config.resample_tolerance, g.commit_time,
+                                             adapt_to_noise=lib.config.adapt_to_noise)
+                        print(f"first commit wrong: subject {subj} seed {seed} trial {i + 1}: {d.task} as "
+                              f"{label.get(commits[0])} (support {lib.component(commits[0]).support:.0f}; own "
+                              f"{', '.join(f'{s:.0f}' for s in own)}), nu {lib.state().scale.dof:.0f}, "
+                              f"at {share:.2f} of the path; executed {label.get(comp)}")
                 if comp is None:
                     tot["asked" if d.task in taught else "new"] += 1
                     for c in lib.partial_fit(d).created:
@@ -87,6 +104,13 @@ def main() -> int:
     print(" ".join(f"{k} {v}" for k, v in tot.items()))
     for k, (ok, bad) in first.items():
         print(f"first commits on {k} tasks: {ok} right, {bad} wrong")
+    if a.why and by_nu:
+        nu, bad, sup = map(np.asarray, zip(*by_nu))
+        nu0 = f"{prior_strength:g}"
+        for name, m in ((f"nu < {nu0}", nu < prior_strength), (f"nu >= {nu0}", nu >= prior_strength),
+                        ("support < 1.5", sup < 1.5),
+                        (f"nu < {nu0} and support < 1.5", (nu < prior_strength) & (sup < 1.5))):
+            print(f"first commits on taught tasks at {name}: {int(m.sum() - bad[m].sum())} right, {int(bad[m].sum())} wrong")
     if shares:
         q = np.nanpercentile(shares, [25, 50, 75])
         print(f"path share at the commit of the skills executed right: mean {np.nanmean(shares):.2f}, "

@@ -105,11 +105,12 @@ class LibraryConfig:
     #: vertex at the mean of the samples within the walk's tolerance of it, not at a single
     #: noisy sample, so that a rest (at the end, the start, a pause) adds almost no path and
     #: does not move the phase (``promp.preprocessing.vertex_path``). Chosen on the buetepage
-    #: training split and LASA half A with 1-10 mm of added noise: LASA half A at 2 / 4 mm
+    #: training split and LASA half A with 0.5-10 mm of added noise: LASA half A at 2 / 4 mm
     #: 0.119 / 0.230 wrong answers without it, 0.022 / 0.081 with it; the buetepage split
-    #: 0.4-5.6 points fewer right answers, no wrong ones (RESULTS.md, "Tracker noise: a rest
-    #: adds no path"). Motions below the noise share are walked as before (every clean data
-    #: set we have). Files written before it load with it off. A deviation from the paper.
+    #: 2-6 points fewer right answers and no wrong one (0.7 % at 10 mm without it; RESULTS.md,
+    #: "Tracker noise: a rest adds no path"). Motions below the noise share are walked as
+    #: before (every clean data set we have). Files written before it load with it off. A
+    #: deviation from the paper.
     average_holds: bool = True
     #: Default workspace for human data (None: data is already normalized);
     #: a per-call ``workspace`` argument overrides it (one per subject).
