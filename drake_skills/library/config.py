@@ -97,9 +97,10 @@ class LibraryConfig:
     #: changes (every data set we have). With glitches added to buetepage and LASA: 0-1.7 %
     #: wrong answers against 4-88 % without it. On the buetepage test split with 3-20 mm of
     #: added noise it takes wrong answers from 5-15 % to 0-1.7 % (the 1.7 % is there without
-    #: noise too), at 2 mm it merged two tasks in 3 of 20 orders; on LASA letters it helps up
-    #: to about one tolerance of noise and hurts beyond (RESULTS.md, "Tracker noise"). A
-    #: deviation from the paper; false: the plain walk.
+    #: noise too), at 2 mm it merged two tasks in 3 of 20 orders (none since ``average_holds``);
+    #: on LASA letters it helped up to about one tolerance of noise and hurt beyond, and since
+    #: ``average_holds`` it answers as few wrong as the plain walk or fewer at 0.5-4 mm (RESULTS.md,
+    #: "Tracker noise"). A deviation from the paper; false: the plain walk.
     adapt_to_noise: bool = True
     #: With ``adapt_to_noise``, a motion that was smoothed for its noise is walked with each
     #: vertex at the mean of the samples within the walk's tolerance of it, not at a single

@@ -11,13 +11,13 @@ recognized component. Tolerances, per order:
   assumed here so that the rates are the issue's) and played 2x slower (interpolated at the
   same rate, twice the samples): identical decisions, component count within 1 (measured over
   5 orders: equal in 3 of 5 at 30 Hz and in 4 of 5 at half speed, never off by more than 1);
-* 2 mm of extra tracker noise: NOT invariant, which the goal asks for. Measured over 5 orders
-  (with ``adapt_to_noise``, which acts from 0.3 tolerances, about 2 mm here): the component
-  count moves from 6-8 to 7-11 and the far rocket test interaction (d^2 ~150 against a
-  threshold of 47) is recognized in every order (before the adaptation: 4-12 components, the
-  path 14 % longer). What holds, and is asserted: no decision becomes wrong and every
-  interaction recognized without the noise keeps its decision. (At 3 mm, measured, not
-  asserted: 5-7 components and every decision as without noise.)
+* 2 mm of extra tracker noise (about where ``adapt_to_noise`` starts to act, 0.3 tolerances
+  here): identical decisions, component count within 1 (measured: equal in 2 of the 3 orders,
+  one fewer in 1; over 5 orders with other noise: equal in 4, one fewer in 1, and 45 of 45
+  decisions). With the walk's vertices at single noisy samples (``average_holds=False``) the
+  rest at the end of each interaction added path, and it failed this: the far rocket test
+  interaction (d^2 ~150 against a threshold of 47) was recognized in every order and the
+  count moved by up to 2.
 * 10 mm of camera-like noise: no wrong answer with the default ``adapt_to_noise``, and at
   least one without it (the test names the measured counts).
 """
@@ -104,27 +104,27 @@ def test_sampling_rate_and_speed_keep_the_decisions(interactions, baseline, tran
         assert abs(K2 - K) <= 1, (K, K2)
 
 
-def test_tracker_noise_of_2mm_keeps_every_recognized_decision_and_adds_no_wrong_answer(interactions, baseline):
+def test_tracker_noise_of_2mm_keeps_the_decisions_and_the_components_within_one(interactions, baseline):
+    """Measured (orders 0-2): components 5 -> 5, 7 -> 7, 8 -> 7, every decision the same; vertices at the samples
+    (``average_holds=False``): 5 -> 6, 7 -> 8, 8 -> 6, the rocket 037 recognized in each."""
     rng = np.random.default_rng(2)
 
     def noisy(d):
         return _like(d, d.t, d.human + rng.normal(0.0, 0.002, d.human.shape), d.robot)
 
-    tasks = [d.task for d in interactions.test]
     for (K, ev, dec, d2), (K2, ev2, dec2, d22) in _runs(interactions, baseline, noisy, None):
-        for (status, label), (status2, label2), task in zip(dec, dec2, tasks):
-            assert status2 != "skill" or label2 == task  # no wrong answer with the noise
-            if status == "skill":
-                assert (status2, label2) == (status, label)
+        assert dec2 == dec
+        assert abs(K2 - K) <= 1, (K, K2)
 
 
 def test_camera_noise_of_10mm_gives_no_wrong_answer_because_the_walk_adapts_to_it(interactions, baseline):
     """10 mm of white noise per axis on every interaction (a camera skeleton tracker; 2-2.5 times the
     arc-length tolerance on this workspace). The plain walk counts nearly every sample, its phase
-    becomes time-like and the library answers wrong (measured: 2 of 9 wrong in 1 of the 3 orders,
-    components 14, 9, 5); with ``adapt_to_noise`` (the default) none wrong in any order (8 of 9
+    becomes time-like and the library answers wrong (measured: 4 of 9 wrong in 1 of the 3 orders,
+    components 10, 8, 4); with ``adapt_to_noise`` (the default) none wrong in any order (8 of 9
     right in each, the rocket 037 unknown as without noise) and at most 10 components (measured
-    5, 8, 5). The noise is drawn once, so both walks see the same samples."""
+    5, 8, 9; 5, 6, 6 with ``average_holds`` off). The noise is drawn once, so both walks see the
+    same samples."""
     rng = np.random.default_rng(7)
     noise = {d.name: rng.normal(0.0, 0.010, d.human.shape) for d in interactions.train + interactions.test}
 
