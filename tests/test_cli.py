@@ -247,6 +247,7 @@ def test_learn_notes_demonstrations_whose_tracker_noise_makes_the_walk_adapt(dat
     assert noise["glitch_samples"] == noise["with_glitches"] == 2
     out = capsys.readouterr().out
     assert f"note: {len(files)} of {len(files)} demonstration(s) have tracker noise above 0.3" in out
+    assert "its vertices the means of their samples so that a rest adds no path" in out
     assert f"note: 2 of {len(files)} demonstration(s) have tracker glitches (2 samples" in out
 
 

@@ -223,8 +223,10 @@ def _learn(args, lib, votes, demos, workspaces, notes, out_file: Path, in_place:
     if noise["adapted"]:
         print(f"note: {noise['adapted']} of {len(demos)} demonstration(s) have tracker noise above "
               f"{noise['share']} of the arc-length tolerance (largest {noise['max']:.2f}): their path was smoothed and "
-              f"walked with a wider tolerance" + ("" if lib.config.adapt_to_noise else
-                                                   " would have been, but adapt_to_noise is off"))
+              f"walked with a wider tolerance"
+              + ((", its vertices the means of their samples so that a rest adds no path"
+                  if lib.config.average_holds else "") if lib.config.adapt_to_noise else
+                 " would have been, but adapt_to_noise is off"))
     args.out.mkdir(parents=True, exist_ok=True)
     # in place, the generation check of save confirms no one wrote the file meanwhile (we hold its lock)
     path = lib.save(out_file, expected_generation=lib.generation if in_place else None)
