@@ -17,6 +17,8 @@ Examples (about 1 min each on the shared 2-core machine)::
     .venv/bin/python benchmarks/tracker_noise.py buetepage --split test --noise 0.005,0.01,0.02 --every 3
     .venv/bin/python benchmarks/tracker_noise.py lasa --half a --noise 1,2,4
     .venv/bin/python benchmarks/tracker_noise.py buetepage --noise 0,0.005 --glitches 0.01,0.1
+    .venv/bin/python benchmarks/tracker_noise.py buetepage --split dev --noise 0.01 --smooth 4   # correlated noise
+    .venv/bin/python benchmarks/tracker_noise.py lasa --half a --noise 2,4 --variants points,adapted
 """
 from __future__ import annotations
 
@@ -37,8 +39,19 @@ VARIANTS = {"plain": ("plain walk", {"adapt_to_noise": False}),
 GLITCHES = (0.0, 0.0, 1)
 
 
+#: Gaussian width (samples) the noise is smoothed over before it is added, rescaled to the same standard
+#: deviation (a tracker that filters its output: noise correlated in time); 0: white.
+SMOOTH = 0.0
+
+
 def _noisy(d: Demonstration, sigma: float, every: int, rng) -> Demonstration:
-    h = d.human[::every] + rng.normal(0.0, sigma, d.human[::every].shape)
+    n = rng.normal(0.0, sigma, d.human[::every].shape)
+    if SMOOTH > 0 and sigma > 0:
+        from scipy.ndimage import gaussian_filter1d
+
+        n = gaussian_filter1d(n, SMOOTH, axis=0, mode="nearest")
+        n *= sigma / n.std(axis=0, keepdims=True)
+    h = d.human[::every] + n
     rate, size, run = GLITCHES
     if rate > 0:
         h = h.copy()
@@ -112,9 +125,14 @@ def main(argv=None) -> None:
     p.add_argument("--variants", default=",".join(VARIANTS),
                    help="comma-separated walks to compare: plain (adapt_to_noise off), points (adapted, every vertex "
                         "a sample: average_holds off), adapted (the defaults); default all three")
+    p.add_argument("--smooth", type=float, default=0.0,
+                   help="smooth the noise over a Gaussian of this many samples, rescaled to the same standard "
+                        "deviation (a tracker that filters its output; default 0: white)")
     p.add_argument("--seed", type=int, default=None,
                    help="seed of the noise draw (default: 7 for buetepage, 3 for lasa, as in RESULTS.md)")
     a = p.parse_args(argv)
+    global SMOOTH
+    SMOOTH = a.smooth
     if a.glitches:
         parts = [float(x) for x in a.glitches.split(",")]
         if len(parts) not in (2, 3) or not (0 <= parts[0] < 1 and parts[1] >= 0) or (len(parts) == 3 and not (
