@@ -71,8 +71,10 @@ def register(sub) -> None:
     q.add_argument("--data", type=Path, default=shared_data_path("buetepage_hr.npz"),
                    help=f"interactions file (default: ../shared/data/buetepage_hr.npz beside the repository, "
                         f"or under ${SHARED_ENV}/data)")
-    q.add_argument("--columns", choices=("hand", "arm"), default="hand",
-                   help="human columns: the hand/wrist (6:9, default) or the whole arm (shoulder, elbow, hand: 0:9)")
+    q.add_argument("--columns", default="hand", metavar="SEL",
+                   help="human columns: the hand/wrist (6:9 of the buetepage_hr layout, default), the whole arm "
+                        "(arm: shoulder, elbow, hand, 0:9), elbow, shoulder, or START:STOP (e.g. 0:3 for a file "
+                        "whose human array holds a wrist only)")
     q.add_argument("--orders", type=int, default=None,
                    help="random orders of the training interactions (default 20, --quick: 2)")
     q.add_argument("--teaching", choices=("random", "row"), default="random",

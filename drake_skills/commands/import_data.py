@@ -45,18 +45,12 @@ def register(sub) -> None:
 
 def _columns(text: str):
     """``START:STOP`` as column indices, or a column name of :data:`drake_skills.data.interaction.COLUMNS`."""
-    from drake_skills.data.interaction import COLUMNS
+    from drake_skills.data.interaction import column_selection
 
-    if text in COLUMNS:
-        return text
     try:
-        start, stop = (int(x) for x in text.split(":"))
-    except ValueError:
-        raise ValueError(f"--columns must be START:STOP (e.g. 6:9) or one of {sorted(COLUMNS)}, got {text!r}") \
-            from None
-    if not 0 <= start < stop:
-        raise ValueError(f"--columns {text}: need 0 <= START < STOP")
-    return list(range(start, stop))  # explicit indices: the loader checks each against the file (a slice clips)
+        return column_selection(text)
+    except ValueError as e:
+        raise ValueError(f"--{e}") from None
 
 
 def _interactions(path: Path, columns, rate: float):

@@ -23,8 +23,9 @@ def register(sub) -> None:
     p.add_argument("demos", type=Path, metavar="DEMOS",
                    help="a directory of labeled demonstration files (.npz/.csv with a task), or an interactions "
                         "file in the layout of buetepage_hr.npz (its train split when it has one)")
-    p.add_argument("--columns", choices=("hand", "arm"), default="hand",
-                   help="for an interactions file: the human columns (default hand)")
+    p.add_argument("--columns", default="hand", metavar="SEL",
+                   help="for an interactions file: the human columns, a name (hand: 6:9 of the buetepage_hr "
+                        "layout, default; arm, elbow, shoulder) or START:STOP")
     p.add_argument("--trials", type=int, default=64, help="settings tried (default 64; trial 0 = the base config)")
     p.add_argument("--folds", type=int, default=4, help="cross-validation folds (default 4)")
     p.add_argument("--orders", type=int, default=2, help="presentation orders per fold (default 2)")
@@ -40,7 +41,7 @@ def register(sub) -> None:
 
 def _load(args) -> list:
     from drake_skills.data.demos import load_dir
-    from drake_skills.data.interaction import COLUMNS, load_interactions
+    from drake_skills.data.interaction import column_selection, load_interactions
 
     if args.demos.is_dir():
         demos = load_dir(args.demos)
@@ -49,7 +50,11 @@ def _load(args) -> list:
         return demos
     if not args.demos.is_file():
         raise FileNotFoundError(f"'{args.demos}' is neither a directory of demonstrations nor a file")
-    demos = load_interactions(args.demos, columns=COLUMNS[args.columns])
+    try:
+        columns = column_selection(args.columns)
+    except ValueError as e:
+        raise ValueError(f"--{e}") from None
+    demos = load_interactions(args.demos, columns=columns)
     return demos.train if any(s is not None for s in demos.split) else list(demos)
 
 

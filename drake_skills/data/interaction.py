@@ -103,6 +103,26 @@ class Interactions(list):
         return tuple(dict.fromkeys(d.task for d in self if d.task is not None))
 
 
+def column_selection(text: str):
+    """A command line's column selection: a name of :data:`COLUMNS` (kept as the name) or ``START:STOP``.
+
+    ``START:STOP`` becomes the explicit indices ``START .. STOP - 1`` (a slice would clip silently;
+    :func:`load_interactions` checks each against the file), e.g. ``0:3`` for a file whose
+    ``human`` holds only a wrist. Raises ``ValueError`` naming the accepted forms.
+    """
+    text = str(text).strip()
+    if text in COLUMNS:
+        return text
+    try:
+        start, stop = (int(x) for x in text.split(":"))
+    except ValueError:
+        raise ValueError(f"columns must be START:STOP (e.g. 6:9 or 0:3) or one of {sorted(COLUMNS)}, "
+                         f"got {text!r}") from None
+    if not 0 <= start < stop:
+        raise ValueError(f"columns {text}: need 0 <= START < STOP")
+    return list(range(start, stop))
+
+
 def _column_indices(columns, n_columns: int, where: str) -> np.ndarray:
     if isinstance(columns, str):
         if columns not in COLUMNS:
@@ -122,7 +142,9 @@ def _column_indices(columns, n_columns: int, where: str) -> np.ndarray:
         if bad.size:
             raise ValueError(f"{where}: columns {bad.tolist()} out of range: human has {n_columns} columns")
     if idx.size == 0:
-        raise ValueError(f"{where}: the column selection {columns!r} picks none of the {n_columns} human columns")
+        raise ValueError(f"{where}: the column selection {columns!r} picks none of the {n_columns} human columns"
+                         f" (the named selections are those of the buetepage_hr layout, 9 columns: shoulder, elbow, "
+                         f"hand; give the columns as START:STOP, e.g. 0:{n_columns} for all)")
     if len(set(idx.tolist())) != idx.size:
         raise ValueError(f"{where}: the column selection {columns!r} repeats a column")
     return idx

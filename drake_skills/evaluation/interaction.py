@@ -47,7 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from drake_skills.data.demonstration import Demonstration
-from drake_skills.data.interaction import COLUMNS, load_interactions
+from drake_skills.data.interaction import column_selection, load_interactions
 from drake_skills.data.workspace import Workspace
 from drake_skills.evaluation.common import EvalReport, Table, run_trials, trial_rng
 from drake_skills.evaluation.labeled import CORRECT, UNKNOWN, WRONG, LabeledLibrary, outcome_fractions
@@ -73,7 +73,8 @@ class InteractionSettings:
 
     #: The interactions file (layout of ``buetepage_hr.npz``).
     data: str = ""
-    #: Human columns: "hand" (the wrist, columns 6:9) or "arm" (shoulder, elbow, hand: 0:9).
+    #: Human columns: "hand" (the wrist, columns 6:9) or "arm" (shoulder, elbow, hand: 0:9) of the
+    #: buetepage_hr layout, another name of ``data.interaction.COLUMNS``, or "START:STOP".
     columns: str = "hand"
     #: Random orders of the training interactions.
     orders: int = 20
@@ -98,8 +99,10 @@ class InteractionSettings:
     library: LibraryConfig = field(default_factory=LibraryConfig)
 
     def __post_init__(self):
-        if self.columns not in ("hand", "arm"):
-            raise ValueError(f"InteractionSettings.columns must be 'hand' or 'arm', got {self.columns!r}")
+        try:
+            column_selection(self.columns)
+        except ValueError as e:
+            raise ValueError(f"InteractionSettings.{e}") from None
         if self.teaching not in TEACHING:
             raise ValueError(f"InteractionSettings.teaching must be one of {TEACHING}, got {self.teaching!r}")
         for name, lo in (("orders", 1), ("n_steps", 2), ("loo_orders", 0)):
@@ -131,7 +134,7 @@ class InteractionContext:
 
     @classmethod
     def of(cls, settings: InteractionSettings) -> "InteractionContext":
-        demos = load_interactions(settings.data, columns=COLUMNS[settings.columns], rate_hz=settings.rate_hz)
+        demos = load_interactions(settings.data, columns=column_selection(settings.columns), rate_hz=settings.rate_hz)
         return cls.from_splits(demos.train, demos.test, settings)
 
     @classmethod

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from drake_skills.data.demonstration import Demonstration
-from drake_skills.data.interaction import load_interactions
+from drake_skills.data.interaction import column_selection, load_interactions
 from drake_skills.evaluation.common import use_agg
 from drake_skills.evaluation.interaction import (InteractionContext, InteractionSettings, best_guess,
                                                  development_splits, interaction_trial, prefix_end, teaching_order,
@@ -106,9 +106,31 @@ def test_task_mean_baseline_is_the_mean_of_the_true_tasks_training_robot_traject
     assert np.array_equal(done, np.isfinite(trial.err_task_mean))
 
 
+def test_a_file_holding_only_a_wrist_is_read_with_explicit_columns_and_the_named_ones_say_how(tmp_path):
+    """A file whose ``human`` array holds the wrist alone (3 columns, as another tracker's export would): the
+    named selection "hand" (6:9 of the buetepage_hr layout) is refused with the START:STOP form to use, and
+    "0:3" reads exactly the demonstrations the 9-column file gives with "hand"."""
+    with np.load(require(), allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["human"] = arrays["human"][:, 6:9]
+    wrist = tmp_path / "wrist_only.npz"
+    np.savez(wrist, **arrays)
+    with pytest.raises(ValueError, match=r"picks none of the 3 human columns .* e.g. 0:3 for all"):
+        load_interactions(wrist, columns=column_selection("hand"))
+    a, b = load_interactions(wrist, columns=column_selection("0:3")), load_interactions(require())
+    assert len(a) == len(b) == 41 and a.split == b.split
+    for x, y in zip(a, b):
+        np.testing.assert_array_equal(x.human, y.human)
+        np.testing.assert_array_equal(x.robot, y.robot)
+    ctx = InteractionContext.of(InteractionSettings(data=str(wrist), columns="0:3", orders=1, fractions=(1.0,)))
+    assert len(ctx.test_robot) == 9
+
+
 def test_settings_reject_bad_values():
-    with pytest.raises(ValueError, match="columns must be 'hand' or 'arm'"):
+    with pytest.raises(ValueError, match=r"columns must be START:STOP \(e.g. 6:9 or 0:3\) or one of"):
         InteractionSettings(columns="leg")
+    with pytest.raises(ValueError, match="need 0 <= START < STOP"):
+        InteractionSettings(columns="3:3")
     with pytest.raises(ValueError, match="orders must be an integer >= 1"):
         InteractionSettings(orders=0)
     with pytest.raises(ValueError, match=r"fractions must be in \(0, 1\]"):
