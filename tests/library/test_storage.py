@@ -101,6 +101,45 @@ def test_a_file_written_before_an_optional_key_loads_as_it_was_learned_and_a_new
     assert [c.id for c in old.components] == [c.id for c in lib.components]
 
 
+def test_bad_files_give_clear_errors(lib, tmp_path):
+    good = tmp_path / "good.npz"
+    lib.save(good)
+    data = good.read_bytes()
+    cases = {}
+    (tmp_path / "truncated.npz").write_bytes(data[: len(data) // 2])
+    cases["truncated.npz"] = "truncated"
+    (tmp_path / "text.npz").write_text("hello")
+    cases["text.npz"] = "truncated or not an .npz"
+    np.savez(tmp_path / "foreign.npz", x=np.arange(3))
+    cases["foreign.npz"] = "not a drake-skills library"
+    _rewrite(good, tmp_path / "newer.npz", meta={"schema_version": storage.SCHEMA_VERSION + 1})
+    cases["newer.npz"] = "newer"
+    with np.load(good) as z:
+        pooled = z["pooled"].copy()
+        means = z["means"].copy()
+        factors = z["factors"].copy()
+    pooled[0, 1] += 1.0
+    _rewrite(good, tmp_path / "asym.npz", pooled=pooled)
+    cases["asym.npz"] = "not symmetric"
+    means[1, 2] = np.nan
+    _rewrite(good, tmp_path / "nan.npz", means=means)
+    cases["nan.npz"] = "NaN"
+    _rewrite(good, tmp_path / "shape.npz", means=means[:, :-1])
+    cases["shape.npz"] = "has shape"
+    _rewrite(good, tmp_path / "rank.npz", factors=factors[:, :-1])
+    cases["rank.npz"] = "'factors' has shape"
+    _rewrite(good, tmp_path / "format.npz", meta={"format": "something else"})
+    cases["format.npz"] = "not a drake-skills library"
+    np.savez(tmp_path / "pickled.npz", metadata=np.array([{"a": 1}], dtype=object), means=means)
+    cases["pickled.npz"] = "Python objects"
+    for name, msg in cases.items():
+        with pytest.raises(ValueError, match=msg) as e:
+            SkillLibrary.load(tmp_path / name)
+        assert name in str(e.value)
+    with pytest.raises(FileNotFoundError):
+        SkillLibrary.load(tmp_path / "missing.npz")
+
+
 def test_empty_library_round_trips(tmp_path):
     p = tmp_path / "empty.npz"
     SkillLibrary().save(p)
