@@ -39,6 +39,12 @@ def _ints(spec: str) -> list[int]:
     return out
 
 
+def _share(lib, demo, workspace, commit_time: float) -> float:
+    cfg = lib.config
+    return commit_share(demo, workspace, cfg.resample_tolerance, commit_time, adapt_to_noise=cfg.adapt_to_noise,
+                        average_holds=cfg.average_holds)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--subjects", default="1-10", help="e.g. 1-10 or 3,7 (default 1-10)")
@@ -82,8 +88,7 @@ def main() -> int:
                         prior_strength = lib.config.prior_strength
                     if a.why and d.task in taught and label.get(commits[0]) != d.task:
                         own = [c.support for c in lib.components if label.get(c.id) == d.task]
-                        share = commit_share(d, ws, lib.config.resample_tolerance, g.commit_time,
-                                             adapt_to_noise=lib.config.adapt_to_noise)
+                        share = _share(lib, d, ws, g.commit_time)
                         print(f"first commit wrong: subject {subj} seed {seed} trial {i + 1}: {d.task} as "
                               f"{label.get(commits[0])} (support {lib.component(commits[0]).support:.0f}; own "
                               f"{', '.join(f'{s:.0f}' for s in own)}), nu {lib.state().scale.dof:.0f}, "
@@ -95,8 +100,7 @@ def main() -> int:
                     taught.add(d.task)
                 elif label.get(comp) == d.task:
                     tot["right"] += 1
-                    shares.append(commit_share(d, ws, lib.config.resample_tolerance, g.commit_time,
-                                               adapt_to_noise=lib.config.adapt_to_noise))
+                    shares.append(_share(lib, d, ws, g.commit_time))
                 else:
                     tot["wrong"] += 1
                     print(f"wrong: subject {subj} seed {seed} trial {i + 1}: {d.task} executed as {label.get(comp)} "

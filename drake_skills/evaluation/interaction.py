@@ -52,6 +52,7 @@ from drake_skills.data.workspace import Workspace
 from drake_skills.evaluation.common import EvalReport, Table, run_trials, trial_rng
 from drake_skills.evaluation.labeled import CORRECT, UNKNOWN, WRONG, LabeledLibrary, outcome_fractions
 from drake_skills.library.incremental import LibraryConfig
+from drake_skills.library.views import StillMotionError
 from drake_skills.promp.preprocessing import prefix_samples, resample_in_time
 
 STREAM_INTERACTION = 7
@@ -206,17 +207,18 @@ def workspace_of(demos) -> Workspace:
 
 
 def prefix_end(human: np.ndarray, workspace: Workspace, fraction: float, tolerance: float, *,
-               adapt_to_noise: bool = True) -> int:
+               adapt_to_noise: bool = True, average_holds: bool = True) -> int:
     """How many samples of ``human`` cover ``fraction`` of its path length, as the library measures it.
 
     The path is the library's: normalized by ``workspace`` (Eq. 14) and counted only
     between vertices more than ``tolerance`` apart, adapted to the tracker's noise as the
-    library's ``adapt_to_noise`` says (the default is the library's default)
+    library's ``adapt_to_noise`` and ``average_holds`` say (the defaults are the library's)
     (:func:`~drake_skills.promp.preprocessing.prefix_samples`: the leading samples up to
     and including the first vertex at or past ``fraction`` of the whole path; for a noisy
-    motion, the first prefix whose own walk reaches it). At least 2.
+    motion, a prefix whose own walk reaches it, found by bisection). At least 2.
     """
-    return prefix_samples(workspace.normalize(human), fraction, tolerance, adapt_to_noise=adapt_to_noise)
+    return prefix_samples(workspace.normalize(human), fraction, tolerance, adapt_to_noise=adapt_to_noise,
+                          average_holds=average_holds)
 
 
 @dataclass(frozen=True, eq=False)
@@ -304,7 +306,7 @@ def replay_commits(library, demo: Demonstration, workspace: Workspace, rule=None
 
 
 def commit_share(demo: Demonstration, workspace: Workspace, tolerance: float, commit_time: float, *,
-                 adapt_to_noise: bool = True) -> float:
+                 adapt_to_noise: bool = True, average_holds: bool = True) -> float:
     """Share of the person's whole path done at ``commit_time`` (s from the start), as the demo reports it.
 
     :func:`~drake_skills.sim.demo.path_progress` (the library's arc length) at that time;
@@ -314,7 +316,7 @@ def commit_share(demo: Demonstration, workspace: Workspace, tolerance: float, co
 
     if not np.isfinite(commit_time):
         return float("nan")
-    t, share = path_progress(demo, workspace, tolerance, adapt_to_noise=adapt_to_noise)
+    t, share = path_progress(demo, workspace, tolerance, adapt_to_noise=adapt_to_noise, average_holds=average_holds)
     return float(np.interp(commit_time, t, share))
 
 
@@ -367,7 +369,8 @@ def interaction_trial(ctx: InteractionContext, index: int) -> InteractionTrial:
             errs[:, i] = (_rms(mean, ctx.test_robot[i]), _rms(prior, ctx.test_robot[i]),
                           _rms(ctx.task_mean[d.task], ctx.test_robot[i]))
         for k, f in enumerate(s.fractions):
-            end = prefix_end(d.human, ctx.workspace, f, cfg.resample_tolerance, adapt_to_noise=cfg.adapt_to_noise)
+            end = prefix_end(d.human, ctx.workspace, f, cfg.resample_tolerance, adapt_to_noise=cfg.adapt_to_noise,
+                             average_holds=cfg.average_holds)
             r = lib.recognize(d.human[:end])
             p_out[i, k] = lab.outcome(r.component, d.task, r.status)
             p_guess[i, k] = lab.outcome(best_guess(r), d.task)
@@ -377,7 +380,7 @@ def interaction_trial(ctx: InteractionContext, index: int) -> InteractionTrial:
         if g.commits:
             first[i] = lab.outcome(g.commits[0], d.task)
             share[i] = commit_share(d, ctx.workspace, cfg.resample_tolerance, g.commit_time,
-                                    adapt_to_noise=cfg.adapt_to_noise)
+                                    adapt_to_noise=cfg.adapt_to_noise, average_holds=cfg.average_holds)
         executed[i] = lab.outcome(g.component, d.task, g.status)
     labels = tuple(lab.label_of(c.id) for c in lib.components)
     return InteractionTrial(lib.n_components, outcomes, d2_min, d2_thr, errs[0], errs[1], errs[2], p_out, p_phase,
@@ -427,9 +430,7 @@ def loo_trial(ctx: InteractionContext, item: tuple[int, int]) -> LooResult:
         path[k] = float(np.interp(held.t[end - 1] - held.t[0], t_share, share))
         try:
             r = lib.recognize(held.human[:end])
-        except ValueError as e:
-            if "does not move" not in str(e):
-                raise
+        except StillMotionError:
             continue  # the wrist has not moved yet
         out[k] = lab.outcome(r.component, held.task, r.status)
         guess[k] = lab.outcome(best_guess(r), held.task)
@@ -439,7 +440,8 @@ def loo_trial(ctx: InteractionContext, item: tuple[int, int]) -> LooResult:
 def _path_share(demo: Demonstration, workspace: Workspace, cfg: LibraryConfig):
     from drake_skills.sim.demo import path_progress
 
-    return path_progress(demo, workspace, cfg.resample_tolerance, adapt_to_noise=cfg.adapt_to_noise)
+    return path_progress(demo, workspace, cfg.resample_tolerance, adapt_to_noise=cfg.adapt_to_noise,
+                         average_holds=cfg.average_holds)
 
 
 def _fractions(outcomes) -> list[float]:

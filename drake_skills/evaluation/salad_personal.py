@@ -88,7 +88,7 @@ class PersonalContext:
 
 
 def observed_prefix(human: np.ndarray, fraction: float, workspace=None, tolerance: float = 0.0, *,
-                    adapt_to_noise: bool = True) -> np.ndarray:
+                    adapt_to_noise: bool = True, average_holds: bool = True) -> np.ndarray:
     """The first ``fraction`` of a motion's path length (measured in the normalized workspace).
 
     The cut falls between two samples; the last row is interpolated there, so the
@@ -110,6 +110,8 @@ def observed_prefix(human: np.ndarray, fraction: float, workspace=None, toleranc
         adapts to a noisy motion the prefix is its first samples whose own walk reaches
         ``fraction`` of the whole's (:func:`~drake_skills.promp.preprocessing.prefix_samples`),
         not interpolated.
+    average_holds : bool
+        The library's ``average_holds`` (default: the library's default), for that walk.
 
     Returns
     -------
@@ -123,7 +125,7 @@ def observed_prefix(human: np.ndarray, fraction: float, workspace=None, toleranc
         return human
     y = workspace.normalize(human, subtract_start=False) if workspace is not None else human
     if not walk_is_causal(y, tolerance, adapt_to_noise=adapt_to_noise):
-        return human[:prefix_samples(y, f, tolerance, adapt_to_noise=True)]
+        return human[:prefix_samples(y, f, tolerance, adapt_to_noise=True, average_holds=average_holds)]
     idx, _, s = vertex_path(y, tolerance)
     human = human[idx]
     if human.shape[0] < 2:
@@ -159,7 +161,7 @@ def response_errors(lab: LabeledLibrary, demo: Demonstration, workspace: Workspa
     targets = {}
     for i, f in enumerate(fractions):
         human = observed_prefix(demo.human, f, workspace, lib.config.resample_tolerance,
-                                adapt_to_noise=lib.config.adapt_to_noise)
+                                adapt_to_noise=lib.config.adapt_to_noise, average_holds=lib.config.average_holds)
         outcome, comp = lab.classify(human, demo.task, workspace, f)
         out["outcome"][i] = outcome
         rec = lib.recognize(human, workspace=workspace)  # the fraction not given: the phase is estimated

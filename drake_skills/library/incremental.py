@@ -75,8 +75,8 @@ from drake_skills.library.recognition import RecognitionMixin, _Path
 from drake_skills.library.scale import SharedScale, shared_covariance
 from drake_skills.library.state import ComponentState, LibraryState
 from drake_skills.library.storage import LibraryChangedError
-from drake_skills.library.views import (Component, DataWarning, Recognition, UnitsWarning, UnknownSkillError,
-                                        Update, WorkspaceWarning)
+from drake_skills.library.views import (Component, DataWarning, Recognition, StillMotionError, UnitsWarning,
+                                        UnknownSkillError, Update, WorkspaceWarning)
 from drake_skills.promp.basis import GaussianBasis, ridge_weights
 from drake_skills.promp.interaction import InteractionProMP
 from drake_skills.promp.preprocessing import arc_length, despiked, resample_in_time, spike_samples
@@ -408,7 +408,7 @@ class SkillLibrary(RecognitionMixin, FileMixin):
             raise ValueError(f"{where + ': ' if where else ''}human positions are too large: their path length "
                              f"overflows (largest |value| {np.abs(human).max():.3g}); check the units and the workspace")
         if not s[-1] > 0:
-            raise ValueError(f"{where + ': ' if where else ''}human trajectory does not move: its path length is 0")
+            raise StillMotionError(f"{where + ': ' if where else ''}human trajectory does not move: its path length is 0")
         path = _Path(np.array(human, dtype=float), vertices, s)  # a copy: the caller's array may change later
         self._paths = ((key, path),) + self._paths[:PATH_MEMO - 1]  # one assignment: safe across threads
         return path

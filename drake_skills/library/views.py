@@ -20,6 +20,14 @@ class UnknownSkillError(RuntimeError):
     """The observed motion matches no skill: the robot should ask for a demonstration."""
 
 
+class StillMotionError(ValueError):
+    """The human motion has no path: it never leaves the arc-length tolerance (of its mean, for a noisy one).
+
+    A ``ValueError``; raised by learning and recognition alike. A caller that watches a live
+    wrist (the gating) takes it for "no motion yet" rather than for bad data.
+    """
+
+
 class DataWarning(UserWarning):
     """Human data that the library can use but that is probably not what the caller meant.
 

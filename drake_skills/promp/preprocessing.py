@@ -61,7 +61,8 @@ _CHI_Q90 = (1.64485, 2.14597, 2.50028, 2.78916, 3.03914, 3.26261, 3.46656, 3.655
 _STILL_TOLERANCE = 1e-9
 
 
-def path_vertices(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False) -> np.ndarray:
+def path_vertices(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False, average_holds: bool = True
+                  ) -> np.ndarray:
     """The samples that carry a path on: noise and standing still removed.
 
     Walks the samples in order and keeps one when it lies more than
@@ -72,7 +73,10 @@ def path_vertices(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False) ->
     than its path and grows with every sample of the hold at the end. The plain walk is causal,
     so a prefix of a motion keeps a prefix of the vertices, and an observed prefix is
     parametrized exactly as the start of the whole motion; the walk adapted to noise
-    (``adapt_to_noise``, :func:`vertex_path`) is not, see :func:`prefix_samples`.
+    (``adapt_to_noise``, :func:`vertex_path`) is not, see :func:`prefix_samples`. When that
+    walk smooths a noisy motion, its vertices are smoothed samples, or with ``average_holds``
+    the means of the samples each stands for (the path then starts and ends at means, and a
+    motion that never leaves the tolerance of its mean has one vertex).
 
     Parameters
     ----------
@@ -80,14 +84,14 @@ def path_vertices(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False) ->
     tolerance : float
         In the units of ``y``; 0 keeps every sample that moves at all (only
         exact repeats are dropped).
-    adapt_to_noise : bool
+    adapt_to_noise, average_holds : bool
         See :func:`vertex_path`.
 
     Returns
     -------
     vertices : array, shape (M, D), M >= 1
     """
-    return vertex_path(y, tolerance, adapt_to_noise=adapt_to_noise)[1]
+    return vertex_path(y, tolerance, adapt_to_noise=adapt_to_noise, average_holds=average_holds)[1]
 
 
 def noise_level(y) -> float:
@@ -155,7 +159,7 @@ def _noise_gain(width: float) -> float:
     return float(np.linalg.norm(gaussian_filter1d(impulse, width, mode="constant")))
 
 
-def _denoised(y: np.ndarray, tol: float, sigma: float | None = None) -> tuple[np.ndarray, float]:
+def _denoised(y: np.ndarray, tol: float, sigma: float | None = None) -> tuple[np.ndarray, float, bool]:
     """The samples and the tolerance the path walk uses when it adapts to the tracker's noise.
 
     Unchanged while the noise is at most ``NOISE_SHARE`` of the tolerance (every data set
@@ -165,17 +169,18 @@ def _denoised(y: np.ndarray, tol: float, sigma: float | None = None) -> tuple[np
     adds a ninth to a fiftieth of the path it adds to the plain walk (not none: two 3-D
     samples of the noise left lie that far apart about once in ten;
     ``tests/promp/test_noise_adaptation.py``). ``sigma``: the noise level of ``y``'s frames, if known.
+    Returns the samples, the tolerance and whether they were smoothed.
     """
     frames, frame_of = _frames(y)
     if sigma is None:
         sigma = _frame_noise(frames)
     if not sigma > NOISE_SHARE * tol:
-        return y, tol
+        return y, tol, False
     ratio = sigma / (NOISE_SHARE * tol)
     width = MAX_SMOOTHING if ratio > 10.0 else min(MAX_SMOOTHING, ratio ** 2 / (2.0 * math.sqrt(math.pi)))
     with np.errstate(over="ignore", invalid="ignore"):
         smooth = gaussian_filter1d(frames, width, axis=0, mode="nearest")
-    return smooth[frame_of], max(tol, sigma * _noise_gain(width) / NOISE_SHARE)
+    return smooth[frame_of], max(tol, sigma * _noise_gain(width) / NOISE_SHARE), True
 
 
 def prefix_samples(y, fraction: float, tolerance: float = 0.0, *, adapt_to_noise: bool = False,
@@ -186,8 +191,11 @@ def prefix_samples(y, fraction: float, tolerance: float = 0.0, *, adapt_to_noise
     is the sample of the first vertex at or past the fraction, plus one. An adapted walk
     (:func:`vertex_path`) smooths and estimates the noise over the samples it is given, so a
     prefix is not walked as the start of the whole; then the count is searched (bisection)
-    for the first prefix whose own walk reaches the fraction of the whole's: what the
-    library sees when it is given those samples. At least 2.
+    for a prefix whose own walk reaches the fraction of the whole's while the one a sample
+    shorter does not: what the library sees when it is given those samples. The lengths of
+    such prefixes are not monotone in the count (the noise estimate, and with
+    ``average_holds`` the last vertex's mean, move as samples arrive), so this can be a few
+    samples past the first that reaches it. At least 2.
     """
     y = as_finite_array(y, "trajectory", ndim=2, min_rows=2)
     f = float(fraction)
@@ -347,13 +355,10 @@ def vertex_path(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False, glit
     smoothed = False
     if adapt_to_noise and tol > 0:
         if glitches_removed:
-            y_in = y
-            y, tol = _denoised(y, tol)
+            y, tol, smoothed = _denoised(y, tol)
         else:
             bad, sigma = _glitches(y, tol)
-            y_in = _replaced(y, bad) if bad.any() else y
-            y, tol = _denoised(y_in, tol, None if bad.any() else sigma)
-        smoothed = y is not y_in
+            y, tol, smoothed = (_denoised(_replaced(y, bad), tol) if bad.any() else _denoised(y, tol, sigma))
     if smoothed and average_holds and math.isfinite(tol) and np.isfinite(y).all():
         idx, v = _averaging_walk(y, tol)  # (what overflowed: the plain walk carries it into the length, refused)
     else:
@@ -363,9 +368,11 @@ def vertex_path(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False, glit
     return idx, v, s
 
 
-def vertex_indices(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False) -> np.ndarray:
-    """Indices of the samples :func:`path_vertices` keeps (increasing, first is 0)."""
-    return vertex_path(y, tolerance, adapt_to_noise=adapt_to_noise)[0]
+def vertex_indices(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False, average_holds: bool = True
+                   ) -> np.ndarray:
+    """Indices of the samples :func:`path_vertices` keeps (increasing, first is 0; with ``average_holds`` on a
+    smoothed motion, the first sample of each vertex)."""
+    return vertex_path(y, tolerance, adapt_to_noise=adapt_to_noise, average_holds=average_holds)[0]
 
 
 def _averaging_walk(y: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
@@ -376,28 +383,27 @@ def _averaging_walk(y: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
     each vertex; the path starts at the mean of the first vertex's samples and ends at the mean
     of the last's (a motion that never leaves the tolerance has one vertex and no length). At a
     hold the mean settles on the true position, so the noise left after smoothing
-    (``NOISE_SHARE`` tolerances per axis) reaches ``tol`` about once in 200 samples in 3-D,
-    where against a single noisy sample (sqrt(2) times as far) it does about once in 10. The
+    (``NOISE_SHARE`` tolerances per axis) reaches ``tol`` about once in 90 samples in 3-D (the
+    chi-square tail; measured on noisy rests once in 60-190), where against a single noisy
+    sample (sqrt(2) times as far) it does about once in 10. Samples a tracker repeats weigh as
+    often as they are repeated. The
     ends as means, not samples, were chosen on LASA half A with 2-4 mm of noise (RESULTS.md,
     "Tracker noise: a rest adds no path"): with the first and last sample as the ends it
     answered 4-16 % wrong instead of 2-8 %.
     """
     rows = y.tolist()
-    dim = len(rows[0])
     starts, means = [0], []
-    acc, n, mean = list(rows[0]), 1, list(rows[0])
+    n, mean = 1, rows[0]
     dist = math.dist
     for i in range(1, len(rows)):
         r = rows[i]
         if dist(r, mean) > tol:
             means.append(mean)
             starts.append(i)
-            acc, n, mean = list(r), 1, list(r)
+            n, mean = 1, r
         else:
             n += 1
-            for d in range(dim):
-                acc[d] += r[d]
-            mean = [a / n for a in acc]
+            mean = [m + (v - m) / n for m, v in zip(mean, r)]  # a running mean: no sum to overflow
     means.append(mean)
     return np.asarray(starts, dtype=int), np.asarray(means, dtype=float)
 
@@ -438,7 +444,8 @@ def arc_length(y, tolerance: float = 0.0, *, adapt_to_noise: bool = False, glitc
     return v, s
 
 
-def resample_by_arc_length(y, n_samples: int, tolerance: float = 0.0, *, adapt_to_noise: bool = False) -> np.ndarray:
+def resample_by_arc_length(y, n_samples: int, tolerance: float = 0.0, *, adapt_to_noise: bool = False,
+                           average_holds: bool = True) -> np.ndarray:
     """Resample a path at ``n_samples`` points equally spaced along its length.
 
     Robust to standing still (repeated points) at the start, the end or in
@@ -460,7 +467,7 @@ def resample_by_arc_length(y, n_samples: int, tolerance: float = 0.0, *, adapt_t
     y = as_finite_array(y, "trajectory", ndim=2, min_rows=2)
     if n_samples < 2:
         raise ValueError(f"n_samples must be >= 2, got {n_samples}")
-    v, s = arc_length(y, tolerance, adapt_to_noise=adapt_to_noise)
+    v, s = arc_length(y, tolerance, adapt_to_noise=adapt_to_noise, average_holds=average_holds)
     if not s[-1] > 0:
         raise ValueError("trajectory does not move: its path length is 0")
     grid = np.linspace(0.0, s[-1], n_samples)

@@ -194,10 +194,12 @@ def _jsonable(x):
 
 
 def path_progress(demo: Demonstration, workspace: Workspace, tolerance: float, *,
-                  adapt_to_noise: bool = True) -> tuple[np.ndarray, np.ndarray]:
+                  adapt_to_noise: bool = True, average_holds: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """The demonstration's share of its path done over time, as the library measures paths.
 
-    Along the walk of the whole motion (``adapt_to_noise``: the library's, default its default).
+    Along the walk of the whole motion (``adapt_to_noise``, ``average_holds``: the library's,
+    default its defaults). With ``average_holds`` on a noisy motion a vertex is the mean of its
+    samples and its time here that of its first sample (a rest: when the hand got there).
     For a noisy motion the library's own walk of a prefix can differ from the start of this
     one by a few percent of the path (``promp.preprocessing.prefix_samples``).
 
@@ -211,7 +213,7 @@ def path_progress(demo: Demonstration, workspace: Workspace, tolerance: float, *
     from drake_skills.promp.preprocessing import vertex_path
 
     y = workspace.normalize(demo.human, subtract_start=False)
-    idx, _, s = vertex_path(y, tolerance, adapt_to_noise=adapt_to_noise)
+    idx, _, s = vertex_path(y, tolerance, adapt_to_noise=adapt_to_noise, average_holds=average_holds)
     return demo.t[idx] - demo.t[0], s / max(s[-1], 1e-12)
 
 
@@ -373,7 +375,8 @@ class CollaborationSim:
         fraction = lead = float("nan")
         if math.isfinite(outcome.plan_start):
             tp, share = path_progress(demo, self.workspace, self.library.config.resample_tolerance,
-                                      adapt_to_noise=self.library.config.adapt_to_noise)
+                                      adapt_to_noise=self.library.config.adapt_to_noise,
+                                      average_holds=self.library.config.average_holds)
             t_commit = outcome.plan_start - outcome.start_time
             fraction = float(np.interp(t_commit, tp, share))
             t_done = float(tp[np.searchsorted(share, MOTION_DONE)])

@@ -11,6 +11,7 @@ from drake_skills.systems.shared import Shared
 from pydrake.systems.framework import Context, LeafSystem, State
 
 from drake_skills.library.incremental import SkillLibrary
+from drake_skills.library.views import StillMotionError
 from drake_skills.systems.decision_rule import DecisionRule
 
 log = logging.getLogger(__name__)
@@ -206,11 +207,15 @@ def recognize_motion(library: SkillLibrary, motion: ObservedMotion, *, whole: bo
     Returns
     -------
     Recognition or None
-        None when there is nothing to recognize (empty library, no motion).
+        None when there is nothing to recognize (empty library, no motion, or a noisy wrist whose
+        path, walked as the library walks it, has no length: :class:`~drake_skills.library.views.StillMotionError`).
     """
     if library.n_components == 0 or motion.n < 2 or _travel(motion) <= 0.0:
         return None
-    return library.recognize(motion.samples, normalized=True, observed_fraction=1.0 if whole else None)
+    try:
+        return library.recognize(motion.samples, normalized=True, observed_fraction=1.0 if whole else None)
+    except StillMotionError:  # a noisy wrist that never left the walk's tolerance of its mean: no motion yet
+        return None
 
 
 def _paused(state: GatingDecision, motion: ObservedMotion, rule: DecisionRule) -> bool:

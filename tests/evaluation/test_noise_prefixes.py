@@ -37,3 +37,18 @@ def test_prefix_end_and_observed_prefix_give_the_fraction_the_library_measures(n
     assert fraction * (1 - 1e-9) <= lib.path_length(p) / whole <= fraction + 0.02
     # the defaults of both are the library's default (adapt_to_noise on)
     assert m == prefix_end(human, ws, fraction, lib.config.resample_tolerance, adapt_to_noise=True)
+
+
+@pytest.mark.parametrize("fraction", [0.2, 0.5, 0.8])
+def test_a_library_that_walks_with_vertices_at_samples_gets_its_prefixes_cut_by_its_own_walk(noisy, fraction):
+    """``average_holds=False`` (a library file written before it): prefix_end and observed_prefix given the
+    library's setting cut where that library's walk reaches the fraction (within 0.02), where the default walk's
+    cut gave it 0.296 / 0.523 / 0.761 (a cold review: 0.761 is below the fraction asked)."""
+    human, ws = noisy
+    lib = SkillLibrary(LibraryConfig(workspace=ws, average_holds=False))
+    tol = lib.config.resample_tolerance
+    whole = lib.path_length(human)
+    m = prefix_end(human, ws, fraction, tol, average_holds=False)
+    assert fraction * (1 - 1e-9) <= lib.path_length(human[:m]) / whole <= fraction + 0.02
+    p = observed_prefix(human, fraction, ws, tol, average_holds=False)
+    assert fraction * (1 - 1e-9) <= lib.path_length(p) / whole <= fraction + 0.02

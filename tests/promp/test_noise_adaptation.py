@@ -86,7 +86,8 @@ def test_the_adapted_tolerance_keeps_the_noise_left_at_the_share():
     rng = np.random.default_rng(4)
     for sigma, tol_min, tol_max in ((0.5, 1.0, 1.1), (3.0, 3.4, 4.2)):
         y = np.vstack([_helix(), np.repeat(_helix()[-1:], 1000, axis=0)]) + rng.normal(0, sigma * TOL, (1500, 3))
-        _, tol = _denoised(y, TOL)
+        _, tol, smoothed = _denoised(y, TOL)
+        assert smoothed
         assert tol_min * TOL <= tol <= tol_max * TOL, tol / TOL
         hold = {}
         for adapt in (False, True):
@@ -325,3 +326,20 @@ def test_a_longer_rest_at_the_end_of_a_noisy_motion_adds_less_than_half_the_path
         short, long = (lib.path_length(ys[r], normalized=True) for r in (100, 400))
         added[average] = (long - short, long / short)
     assert added[True][1] < 1.08 and added[True][0] < 0.5 * added[False][0], added
+
+
+def test_a_clean_motion_whose_glitch_is_replaced_is_walked_plainly_with_its_vertices_at_samples():
+    """A glitch replaced on an otherwise clean line (below the noise share, so nothing is smoothed): the walk is
+    the plain walk of the despiked line, its vertices samples of it, whatever ``average_holds`` says (a cold
+    review: no test held that the averaging acts only on smoothed motions)."""
+    from drake_skills.promp.preprocessing import despiked, spike_samples
+
+    y = np.stack([np.linspace(0.0, 3.0, 200), np.zeros(200), np.zeros(200)], axis=1)
+    y[80] += [0.0, 1.0, 0.0]                       # one frame 10 tolerances off the line, then back
+    assert spike_samples(y, TOL).sum() == 1
+    plain = vertex_path(despiked(y, TOL), TOL)
+    for average in (True, False):
+        idx, v, s = vertex_path(y, TOL, adapt_to_noise=True, average_holds=average)
+        np.testing.assert_array_equal(idx, plain[0])
+        np.testing.assert_array_equal(v, despiked(y, TOL)[idx])
+        np.testing.assert_array_equal(s, plain[2])

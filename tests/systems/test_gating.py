@@ -247,3 +247,33 @@ def test_an_undecided_re_decision_during_the_rest_does_not_turn_the_rest_rule_of
     state = _pause_then_rest(_PhaseScripted(0.45, 8, undecided_after=12), rule)
     assert state.commits == (7,) and any(b.status == "undecided" for b in state.beliefs)
     assert state.final and state.status == "undecided" and state.component is None
+
+
+def test_a_noisy_wrist_that_never_leaves_the_walks_tolerance_is_no_motion_not_a_crash(library):
+    """A wrist at rest with tracker noise of 0.5 arc-length tolerances (so the walk smooths it and averages the
+    rest, ``average_holds``): some draws (6 of 40) never leave the tolerance of their mean, so the path has no
+    length and the library refuses it as not moving (StillMotionError, a ValueError). The gating takes that for
+    no motion: recognize_motion gives None, and at the decision time the final answer is "unknown" (the robot
+    holds), where before it raised inside the Drake system's update (a cold review)."""
+    import warnings
+
+    from drake_skills.library.views import StillMotionError, UnitsWarning
+
+    library = SkillLibrary.from_state(library.state())  # its own copy: it warns once about the tiny motion
+    warnings.simplefilter("ignore", UnitsWarning)         # (pytest restores the filters after the test)
+    tol = library.config.resample_tolerance
+    found = 0
+    for seed in range(40):
+        y = np.random.default_rng(seed).normal(0.0, 0.5 * tol, (150, 3))
+        motion = _motion(y)
+        try:
+            library.recognize(motion.samples, normalized=True)
+            continue
+        except StillMotionError as e:
+            assert "does not move" in str(e) and isinstance(e, ValueError)
+        found += 1
+        assert recognize_motion(library, motion, whole=True) is None
+        assert recognize_motion(library, motion, whole=False) is None
+        state = _run(GatingDecision(), motion.samples, library, DecisionRule(decision_time=2.0))
+        assert state.final and state.status == "unknown" and state.component is None
+    assert found >= 3, found  # the case exists (measured: 6 of 40 draws)
