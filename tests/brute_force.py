@@ -209,9 +209,11 @@ class Reference:
         support = self._support()
         fits = ~self.rule.novel(logp, d2, dof)
         dofs = np.broadcast_to(dof, fits.shape)
-        for k in range(len(fits)):  # a component seen once explains a motion only within its quantile
+        for k in range(len(fits)):  # a component seen once explains a motion only within its quantile (a
+            # whole motion while the scale is more prior than data, a beginning always)
             if support[k] < 1.5 and cfg.novelty_test == "chi2" and cfg.single_demo_quantile < 1 \
-                    and self.scale.dof < cfg.prior_strength and d2[k] > chi2_ppf(cfg.single_demo_quantile, dofs[k]):
+                    and (self.scale.dof < cfg.prior_strength or shares is not None) \
+                    and d2[k] > chi2_ppf(cfg.single_demo_quantile, dofs[k]):
                 fits[k] = False
         resp = _resp(logp, support)
         post = _resp(logp, support, fits)

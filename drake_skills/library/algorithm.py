@@ -286,16 +286,22 @@ class _Work:
         return Components._frozen(tuple(self.items), *(a[:self.n] for a in self._buffers()), bound_ref=self.bound_ref)
 
 
-def single_demo_rule(config, scale: SharedScale) -> float | None:
+def single_demo_rule(config, scale: SharedScale, *, beginning: bool = False) -> float | None:
     """The chi-square quantile a young component (:data:`YOUNG_SUPPORT`) is held to now, or None.
 
-    None (no limit beyond the novelty and merge tests) once the shared scale is more data than
-    prior (pooled degrees of freedom ``nu >= prior_strength``), with the rule off
-    (``single_demo_quantile`` 1) or with the log-likelihood test. Learning, recognition and
-    ``drake-skills recognize`` ask this one function.
+    None (no limit beyond the novelty and merge tests) with the rule off (``single_demo_quantile``
+    1) or with the log-likelihood test; for a whole motion (learning, merging, recognition) also
+    once the shared scale is more data than prior (pooled degrees of freedom ``nu >=
+    prior_strength``). A *beginning* (``beginning=True``: recognition from a prefix, its phase
+    estimated) is held to it at every ``nu``: the phase is searched for the best fit, and a
+    component seen once has no spread of its own to say where along it a beginning may lie (on
+    the buetepage test split the first 20 % of a hand wave was taken, at phase 0.85, for the
+    whole of a one-demonstration rocket fragment, at d^2 30-38 of 15 dof, in 14 of 180 answers;
+    RESULTS.md, "A skill seen once"). Learning, recognition and ``drake-skills recognize`` ask
+    this one function.
     """
     q = config.single_demo_quantile
-    if q >= 1 or config.novelty_test != "chi2" or scale.dof >= config.prior_strength:
+    if q >= 1 or config.novelty_test != "chi2" or (scale.dof >= config.prior_strength and not beginning):
         return None
     return q
 

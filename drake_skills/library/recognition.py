@@ -127,8 +127,9 @@ class RecognitionMixin:
         else:
             fits = np.zeros(len(comps), bool)
             fits[scored] = ~self._rule.novel(logp[scored], d2[scored], dof[scored])
-        q1 = single_demo_rule(self.config, self._scale)
-        if q1 is not None:  # a component seen once, on a scale that is still more prior than data: only well inside
+        q1 = single_demo_rule(self.config, self._scale, beginning=shares is not None)
+        if q1 is not None:  # a component seen once, on a scale still more prior than data or (its phase searched)
+            # from a beginning: only well inside
             young = fits & (comps.support < YOUNG_SUPPORT)
             if young.any():
                 k = np.flatnonzero(young)
