@@ -60,16 +60,22 @@ def test_a_motion_between_the_thresholds_is_unknown_only_to_a_component_seen_onc
     assert rec.status == status
 
 
-def test_a_beginning_near_the_threshold_of_a_component_seen_once_is_unknown_under_the_stricter_quantile():
-    """The prefix test uses the same rule at its own degrees of freedom."""
-    cfg = _config(1.0)
-    lib, demo = _one_component(cfg, support=1.0, d2=8.0)
+def _beginning(dof):
+    """A one-component library (support 1, rule off) on a scale of ``dof``, the first two thirds of a motion that
+    its prefix test explains inside the novelty threshold but not at its centre: (library, demo, prefix, d^2, p)."""
+    lib, demo = _one_component(_config(1.0), support=1.0, d2=8.0, dof=dof)
     part = demo.human[: 2 * len(demo.human) // 3]
     rec = lib.recognize(part)
     assert rec.status == "skill"
-    d2, dof = float(rec.mahalanobis_sq[0]), float(np.broadcast_to(rec.dof, (1,))[0])
-    p = chi2.cdf(d2, dof)
+    d2, k = float(rec.mahalanobis_sq[0]), float(np.broadcast_to(rec.dof, (1,))[0])
+    p = chi2.cdf(d2, k)
     assert 0.05 < p < 0.999, "the beginning must lie inside the novelty threshold, not at its centre"
+    return lib, demo, part, d2, p
+
+
+def test_a_beginning_near_the_threshold_of_a_component_seen_once_is_unknown_under_the_stricter_quantile():
+    """The prefix test uses the same rule at its own degrees of freedom."""
+    _, _, part, d2, p = _beginning(YOUNG_SCALE)
     for q1, status in ((0.5 * p, "unknown"), (0.5 * (1 + p), "skill")):
         lib2, _ = _one_component(_config(q1), support=1.0, d2=8.0)
         rec2 = lib2.recognize(part)
@@ -134,15 +140,8 @@ def test_a_beginning_is_held_to_the_stricter_quantile_also_on_a_scale_learned_fr
     along it the beginning may lie: its stricter quantile applies at every nu (on the buetepage test split the
     first 20 % of a hand wave was taken for the whole of a one-demonstration rocket fragment). The whole motion
     at the same scale is not held to it (the test above), nor is a component seen twice."""
-    cfg = _config(1.0)
-    learned = cfg.prior_strength
-    lib, demo = _one_component(cfg, support=1.0, d2=8.0, dof=learned)
-    part = demo.human[: 2 * len(demo.human) // 3]
-    rec = lib.recognize(part)
-    assert rec.status == "skill"
-    d2, dof = float(rec.mahalanobis_sq[0]), float(np.broadcast_to(rec.dof, (1,))[0])
-    p = chi2.cdf(d2, dof)
-    assert 0.05 < p < 0.999, "the beginning must lie inside the novelty threshold, not at its centre"
+    learned = _config(1.0).prior_strength
+    lib, demo, part, d2, p = _beginning(learned)
     f = float(lib.path_length(part) / lib.path_length(demo.human))
     fixed_off = lib.recognize(part, observed_fraction=f)
     for q1, support, status in ((0.5 * p, 1.0, "unknown"), (0.5 * (1 + p), 1.0, "skill"), (0.5 * p, 2.0, "skill")):
