@@ -41,8 +41,7 @@ def _ints(spec: str) -> list[int]:
 
 def _share(lib, demo, workspace, commit_time: float) -> float:
     cfg = lib.config
-    return commit_share(demo, workspace, cfg.resample_tolerance, commit_time, adapt_to_noise=cfg.adapt_to_noise,
-                        average_holds=cfg.average_holds)
+    return commit_share(demo, workspace, cfg.resample_tolerance, commit_time, **cfg.walk_options())
 
 
 def main() -> int:

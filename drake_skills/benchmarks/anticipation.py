@@ -33,8 +33,7 @@ def run(quick: bool = False, config=None) -> list[dict]:
     for t in tasks:
         for d in data.by_task(t)[6:]:
             y = ws.normalize(d.human, subtract_start=lib_config.subtract_start)
-            idx, _, s = vertex_path(y, lib_config.resample_tolerance, adapt_to_noise=lib_config.adapt_to_noise,
-                                    average_holds=lib_config.average_holds)
+            idx, _, s = vertex_path(y, lib_config.resample_tolerance, **lib_config.walk_options())
             for f in rng.uniform(0.2, 0.8, 2 if quick else 6):
                 prefixes.append(y[: idx[np.searchsorted(s, f * s[-1])] + 1])
     repeats = 20 if quick else 200

@@ -43,16 +43,6 @@ def register(sub) -> None:
     q.set_defaults(func=run_interactions)
 
 
-def _columns(text: str):
-    """``START:STOP`` as column indices, or a column name of :data:`drake_skills.data.interaction.COLUMNS`."""
-    from drake_skills.data.interaction import column_selection
-
-    try:
-        return column_selection(text)
-    except ValueError as e:
-        raise ValueError(f"--{e}") from None
-
-
 def _interactions(path: Path, columns, rate: float):
     """``[(Demonstration, split)]`` read by :func:`drake_skills.data.interaction.load_interactions`."""
     from drake_skills.data.interaction import load_interactions
@@ -82,11 +72,12 @@ def _remove_previous(out: Path) -> None:
 
 
 def run_interactions(args: argparse.Namespace) -> int:
+    from drake_skills.data.interaction import column_selection
     from drake_skills.data.workspace import Workspace
 
     if not args.rate > 0:
         raise ValueError(f"--rate must be positive, got {args.rate}")
-    pairs = _interactions(args.data, _columns(args.columns), args.rate)
+    pairs = _interactions(args.data, column_selection(args.columns, "--columns"), args.rate)
     train = [d for d, s in pairs if s == "train"]
     if not train:
         raise ValueError(f"data set '{args.data}': no interaction in the 'train' split; the workspace is the "

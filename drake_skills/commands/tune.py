@@ -50,11 +50,7 @@ def _load(args) -> list:
         return demos
     if not args.demos.is_file():
         raise FileNotFoundError(f"'{args.demos}' is neither a directory of demonstrations nor a file")
-    try:
-        columns = column_selection(args.columns)
-    except ValueError as e:
-        raise ValueError(f"--{e}") from None
-    demos = load_interactions(args.demos, columns=columns)
+    demos = load_interactions(args.demos, columns=column_selection(args.columns, "--columns"))
     return demos.train if any(s is not None for s in demos.split) else list(demos)
 
 

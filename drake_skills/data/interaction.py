@@ -103,12 +103,13 @@ class Interactions(list):
         return tuple(dict.fromkeys(d.task for d in self if d.task is not None))
 
 
-def column_selection(text: str):
+def column_selection(text: str, name: str = "columns"):
     """A command line's column selection: a name of :data:`COLUMNS` (kept as the name) or ``START:STOP``.
 
     ``START:STOP`` becomes the explicit indices ``START .. STOP - 1`` (a slice would clip silently;
     :func:`load_interactions` checks each against the file), e.g. ``0:3`` for a file whose
-    ``human`` holds only a wrist. Raises ``ValueError`` naming the accepted forms.
+    ``human`` holds only a wrist. Raises ``ValueError`` naming the setting (``name``, e.g.
+    ``--columns``) and the accepted forms.
     """
     text = str(text).strip()
     if text in COLUMNS:
@@ -116,10 +117,10 @@ def column_selection(text: str):
     try:
         start, stop = (int(x) for x in text.split(":"))
     except ValueError:
-        raise ValueError(f"columns must be START:STOP (e.g. 6:9 or 0:3) or one of {sorted(COLUMNS)}, "
+        raise ValueError(f"{name} must be START:STOP (e.g. 6:9 or 0:3) or one of {sorted(COLUMNS)}, "
                          f"got {text!r}") from None
     if not 0 <= start < stop:
-        raise ValueError(f"columns {text}: need 0 <= START < STOP")
+        raise ValueError(f"{name} {text}: need 0 <= START < STOP")
     return list(range(start, stop))
 
 

@@ -100,10 +100,7 @@ class InteractionSettings:
     library: LibraryConfig = field(default_factory=LibraryConfig)
 
     def __post_init__(self):
-        try:
-            column_selection(self.columns)
-        except ValueError as e:
-            raise ValueError(f"InteractionSettings.{e}") from None
+        column_selection(self.columns, "InteractionSettings.columns")
         if self.teaching not in TEACHING:
             raise ValueError(f"InteractionSettings.teaching must be one of {TEACHING}, got {self.teaching!r}")
         for name, lo in (("orders", 1), ("n_steps", 2), ("loo_orders", 0)):
@@ -369,8 +366,7 @@ def interaction_trial(ctx: InteractionContext, index: int) -> InteractionTrial:
             errs[:, i] = (_rms(mean, ctx.test_robot[i]), _rms(prior, ctx.test_robot[i]),
                           _rms(ctx.task_mean[d.task], ctx.test_robot[i]))
         for k, f in enumerate(s.fractions):
-            end = prefix_end(d.human, ctx.workspace, f, cfg.resample_tolerance, adapt_to_noise=cfg.adapt_to_noise,
-                             average_holds=cfg.average_holds)
+            end = prefix_end(d.human, ctx.workspace, f, cfg.resample_tolerance, **cfg.walk_options())
             r = lib.recognize(d.human[:end])
             p_out[i, k] = lab.outcome(r.component, d.task, r.status)
             p_guess[i, k] = lab.outcome(best_guess(r), d.task)
@@ -379,8 +375,7 @@ def interaction_trial(ctx: InteractionContext, index: int) -> InteractionTrial:
         g, rest[i] = replay_commits(lib, d, ctx.workspace)
         if g.commits:
             first[i] = lab.outcome(g.commits[0], d.task)
-            share[i] = commit_share(d, ctx.workspace, cfg.resample_tolerance, g.commit_time,
-                                    adapt_to_noise=cfg.adapt_to_noise, average_holds=cfg.average_holds)
+            share[i] = commit_share(d, ctx.workspace, cfg.resample_tolerance, g.commit_time, **cfg.walk_options())
         executed[i] = lab.outcome(g.component, d.task, g.status)
     labels = tuple(lab.label_of(c.id) for c in lib.components)
     return InteractionTrial(lib.n_components, outcomes, d2_min, d2_thr, errs[0], errs[1], errs[2], p_out, p_phase,
@@ -440,8 +435,7 @@ def loo_trial(ctx: InteractionContext, item: tuple[int, int]) -> LooResult:
 def _path_share(demo: Demonstration, workspace: Workspace, cfg: LibraryConfig):
     from drake_skills.sim.demo import path_progress
 
-    return path_progress(demo, workspace, cfg.resample_tolerance, adapt_to_noise=cfg.adapt_to_noise,
-                         average_holds=cfg.average_holds)
+    return path_progress(demo, workspace, cfg.resample_tolerance, **cfg.walk_options())
 
 
 def _fractions(outcomes) -> list[float]:

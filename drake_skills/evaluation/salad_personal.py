@@ -160,8 +160,7 @@ def response_errors(lab: LabeledLibrary, demo: Demonstration, workspace: Workspa
     p_demo = flange_position(demo.robot[-1])
     targets = {}
     for i, f in enumerate(fractions):
-        human = observed_prefix(demo.human, f, workspace, lib.config.resample_tolerance,
-                                adapt_to_noise=lib.config.adapt_to_noise, average_holds=lib.config.average_holds)
+        human = observed_prefix(demo.human, f, workspace, lib.config.resample_tolerance, **lib.config.walk_options())
         outcome, comp = lab.classify(human, demo.task, workspace, f)
         out["outcome"][i] = outcome
         rec = lib.recognize(human, workspace=workspace)  # the fraction not given: the phase is estimated

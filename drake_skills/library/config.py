@@ -269,6 +269,12 @@ class LibraryConfig:
         object.__setattr__(c, "_sealed", True)
         return c
 
+    def walk_options(self) -> dict:
+        """The path walk's settings as keyword arguments (``adapt_to_noise``, ``average_holds``) of
+        ``promp.preprocessing.vertex_path`` and the helpers that walk a motion as the library does
+        (``evaluation.interaction.prefix_end``, ``commit_share``, ``sim.demo.path_progress``, ...)."""
+        return {"adapt_to_noise": self.adapt_to_noise, "average_holds": self.average_holds}
+
     def dict(self) -> dict:
         """The fields as JSON-ready values (the workspace as ``{"lower", "upper", "scale"}``)."""
         d = {f.name: getattr(self, f.name) for f in fields(self)}

@@ -402,8 +402,7 @@ class SkillLibrary(RecognitionMixin, FileMixin):
                     human = despiked(human, cfg.resample_tolerance, glitches=glitches)
                     if glitches[0] and cfg.subtract_start:  # a glitch on the first sample would offset the
                         human = human - human[0]            # whole motion (Eq. 14's start)
-            vertices, s = arc_length(human, cfg.resample_tolerance, adapt_to_noise=cfg.adapt_to_noise,
-                                     glitches_removed=adapt, average_holds=cfg.average_holds)
+            vertices, s = arc_length(human, cfg.resample_tolerance, glitches_removed=adapt, **cfg.walk_options())
         if not np.isfinite(s[-1]):
             raise ValueError(f"{where + ': ' if where else ''}human positions are too large: their path length "
                              f"overflows (largest |value| {np.abs(human).max():.3g}); check the units and the workspace")

@@ -374,9 +374,8 @@ class CollaborationSim:
             tracking = float(np.sqrt(np.mean(err ** 2))) if err.size else float("nan")
         fraction = lead = float("nan")
         if math.isfinite(outcome.plan_start):
-            tp, share = path_progress(demo, self.workspace, self.library.config.resample_tolerance,
-                                      adapt_to_noise=self.library.config.adapt_to_noise,
-                                      average_holds=self.library.config.average_holds)
+            lib_cfg = self.library.config
+            tp, share = path_progress(demo, self.workspace, lib_cfg.resample_tolerance, **lib_cfg.walk_options())
             t_commit = outcome.plan_start - outcome.start_time
             fraction = float(np.interp(t_commit, tp, share))
             t_done = float(tp[np.searchsorted(share, MOTION_DONE)])
