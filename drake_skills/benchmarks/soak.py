@@ -75,7 +75,9 @@ def soak(n_updates: int, n_skills: int, *, config: LibraryConfig | None = None, 
     dict
         ``violations`` (list of (update, message)), ``checks``, ``kinds`` (counts),
         ``wall`` and ``cpu`` (n_updates,) seconds per update, ``K`` (n_updates,)
-        components after each update, ``events`` (history counts), ``library``.
+        components after each update, ``events`` (history counts), ``refused`` (updates that raised
+        ``ValueError`` and left the library as it was: 5-sample motions whose samples read as tracker
+        noise), ``library``.
     """
     rng = np.random.default_rng(seed)
     bank = skill_bank(n_skills, rng)
@@ -83,7 +85,7 @@ def soak(n_updates: int, n_skills: int, *, config: LibraryConfig | None = None, 
     kinds = list(MIX) + ["skill"]
     probs = np.array(list(MIX.values()) + [1.0 - sum(MIX.values())])
     wall, cpu, K = np.zeros(n_updates), np.zeros(n_updates), np.zeros(n_updates, int)
-    violations, checks, counts = [], 0, dict.fromkeys(kinds, 0)
+    violations, checks, counts, refused = [], 0, dict.fromkeys(kinds, 0), 0
     last = None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the one-offs and fast motions warn about their units, by design
@@ -97,13 +99,19 @@ def soak(n_updates: int, n_skills: int, *, config: LibraryConfig | None = None, 
                 demo = _variant(kind, bank.demo(int(rng.integers(taught)), rng, scatter=scatter), rng)
             counts[kind] += 1
             c0, t0 = time.process_time(), time.perf_counter()
-            lib.partial_fit(demo)
+            seen = lib.n_seen
+            try:
+                lib.partial_fit(demo)
+            except ValueError:  # refused (a 5-sample motion may read as tracker noise): the library is unchanged
+                refused += 1
+                if lib.n_seen != seen:
+                    violations.append((i + 1, f"a refused update changed n_seen from {seen} to {lib.n_seen}"))
             wall[i], cpu[i] = time.perf_counter() - t0, time.process_time() - c0
             last = demo
             K[i] = lib.n_components
             state = None
-            if lib.n_seen != i + 1:
-                violations.append((i + 1, f"n_seen is {lib.n_seen} after {i + 1} updates"))
+            if lib.n_seen != i + 1 - refused:
+                violations.append((i + 1, f"n_seen is {lib.n_seen} after {i + 1} updates, {refused} refused"))
             if (i + 1) % check_every == 0 or i + 1 == n_updates:
                 state = lib.state()
                 checks += 1
@@ -113,8 +121,8 @@ def soak(n_updates: int, n_skills: int, *, config: LibraryConfig | None = None, 
     events: dict[str, int] = {}
     for e in lib.history:
         events[e["event"]] = events.get(e["event"], 0) + 1
-    return {"violations": violations, "checks": checks, "kinds": counts, "wall": wall, "cpu": cpu, "K": K,
-            "events": events, "library": lib}
+    return {"violations": violations, "checks": checks, "kinds": counts, "refused": refused, "wall": wall,
+            "cpu": cpu, "K": K, "events": events, "library": lib}
 
 
 def run(quick: bool = False, config=None, *, n_updates: int | None = None) -> list[dict]:
@@ -134,7 +142,8 @@ def run(quick: bool = False, config=None, *, n_updates: int | None = None) -> li
                        f"first: {v[0]}" if v else f"{out['checks']} full checks (every 100 updates and the last), "
                                                    f"counts every update")},
             {"name": "stream", "value": n, "unit": "updates",
-             "notes": f"{n_skills} skills arriving over the first half; {mix}; history: {ev}"}]
+             "notes": f"{n_skills} skills arriving over the first half; {mix}; refused {out['refused']} (the library "
+                      f"unchanged); history: {ev}"}]
     tenth = max(1, n // 10)
     for a in range(0, n, tenth):
         b = min(n, a + tenth)

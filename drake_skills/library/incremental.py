@@ -79,7 +79,7 @@ from drake_skills.library.views import (Component, DataWarning, Recognition, Sti
                                         UnknownSkillError, Update, WorkspaceWarning)
 from drake_skills.promp.basis import GaussianBasis, ridge_weights
 from drake_skills.promp.interaction import InteractionProMP
-from drake_skills.promp.preprocessing import arc_length, despiked, resample_in_time, spike_samples
+from drake_skills.promp.preprocessing import arc_length, despiked, noise_level, resample_in_time, spike_samples
 
 #: Normalized motions (Eq. 14 and their path) a library keeps for queries about the same
 #: samples: the gating, the conditioner and ``predict_robot`` ask about one prefix each tick.
@@ -106,6 +106,18 @@ def _check_finite_step(step, w: np.ndarray, where: str) -> None:
     if not ok:
         raise ValueError(f"{where}: its values are too large for the library's arithmetic (the update overflows; "
                          f"largest |weight| {np.abs(w).max():.3g}); check the units. The library is unchanged")
+
+
+def _noise_note(human: np.ndarray, cfg: LibraryConfig) -> str:
+    """Why a motion that moves has no path under ``adapt_to_noise``: it reads as tracker noise (else '')."""
+    if not (cfg.adapt_to_noise and cfg.resample_tolerance > 0):
+        return ""
+    plain = arc_length(human, cfg.resample_tolerance)[1][-1]
+    if not plain > 0:
+        return ""
+    return (f" once the walk adapts to tracker noise: its samples read as noise of {noise_level(human):.3g} "
+            f"normalized units per axis, the plain path is {plain:.3g} ({human.shape[0]} samples: too few or too "
+            f"far apart to tell motion from noise; give more samples per motion, or adapt_to_noise=False)")
 
 
 @lru_cache(maxsize=8)
@@ -407,7 +419,8 @@ class SkillLibrary(RecognitionMixin, FileMixin):
             raise ValueError(f"{where + ': ' if where else ''}human positions are too large: their path length "
                              f"overflows (largest |value| {np.abs(human).max():.3g}); check the units and the workspace")
         if not s[-1] > 0:
-            raise StillMotionError(f"{where + ': ' if where else ''}human trajectory does not move: its path length is 0")
+            raise StillMotionError(f"{where + ': ' if where else ''}human trajectory does not move: its path length "
+                                   f"is 0" + _noise_note(human, cfg))
         path = _Path(np.array(human, dtype=float), vertices, s)  # a copy: the caller's array may change later
         self._paths = ((key, path),) + self._paths[:PATH_MEMO - 1]  # one assignment: safe across threads
         return path

@@ -666,3 +666,29 @@ def test_observation_noise_is_learned_from_what_the_basis_cannot_hold():
     assert fits.shape == (100, lib.config.n_basis_human)
     rec = lib.recognize(wave(0.1).human)  # whole motion, phase estimated
     assert rec.status == "skill" and rec.phase > 0.9
+
+
+def test_a_few_far_apart_samples_that_read_as_noise_are_refused_with_the_reason_and_the_library_unchanged():
+    """Five samples 6-17 units apart: their second differences read as noise of about 4 units per axis, so the
+    adapted walk leaves no path. ``partial_fit`` refuses it (StillMotionError, a ValueError), says why and
+    what to do, and changes nothing; without ``adapt_to_noise`` the same motion is learned."""
+    from drake_skills.library.views import StillMotionError
+
+    human = np.array([[0, 0, 0], [15.726, 7.05, 1.477], [12.153, 0.289, -3.747], [1.226, -7.97, -8.08],
+                      [-0.031, -3.621, -3.842]])
+    demo = Demonstration(t=np.arange(5) / 4.0, human=human, robot=np.zeros((5, 2)), name="coarse")
+    lib = SkillLibrary()
+    lib.partial_fit(Demonstration(t=np.linspace(0, 1, 50), human=np.outer(np.linspace(0, 1, 50), [3.0, 1.0, 0.5]),
+                                  robot=np.zeros((50, 2))))
+    before = lib.state()
+    with pytest.raises(StillMotionError, match=r"demo 'coarse': human trajectory does not move: its path length is "
+                                               r"0 once the walk adapts to tracker noise: its samples read as noise "
+                                               r"of 4\.04 normalized units per axis, the plain path is 47\.1 "
+                                               r"\(5 samples: too few or too far apart"):
+        lib.partial_fit(demo)
+    after = lib.state()
+    assert after.n_seen == before.n_seen == 1 and after.history == before.history
+    np.testing.assert_array_equal(after.components[0].mean, before.components[0].mean)
+    plain = SkillLibrary(LibraryConfig(adapt_to_noise=False))
+    plain.partial_fit(demo)
+    assert plain.n_components == 1
