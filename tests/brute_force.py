@@ -182,6 +182,15 @@ class Reference:
                 for i in np.flatnonzero(rule.splits(d2s, h) & both):
                     c = items[int(i)]
                     a, b = c.subclusters
+                    # apart as two skills, not as two halves of one: the spread along the line through
+                    # the means, within the halves against in all (scatter matrices in whitened units)
+                    Linv = metric[1]
+                    u = Linv @ (a.mean[:h] - b.mean[:h])
+                    u = u / np.linalg.norm(u)
+                    within = sum(u @ Linv @ cl.scatter[:h, :h] @ Linv.T @ u for cl in (a, b))
+                    total = within + a.support * b.support / c.support * float(dz[i] @ dz[i])
+                    if within / total > cfg.split_within_share and min(a.support, b.support) >= 5.0:
+                        continue
                     g = np.sqrt(a.support * b.support / c.support) * (a.mean - b.mean)
                     scale = scale.with_scatter(g, -1.0, -1.0)
                     items[int(i)] = ComponentModel(c.id, c.created, a, (a, None))

@@ -15,8 +15,9 @@
    closest first (a component that did not change can come within it as the scale
    moves); a merged component keeps the two it came from as its sub-clusters;
 5. split: a component whose two sub-clusters have grown apart beyond the split
-   threshold becomes two again (so a merge made on an early, too-wide scale is undone
-   once the scale has been learned);
+   threshold, and lie apart as two skills do rather than as two halves of one
+   (:func:`within_share`, ``LibraryConfig.split_within_share``), becomes two again (so a
+   merge made on an early, too-wide scale is undone once the scale has been learned);
 6. delete outliers by age and support.
 
 Every distance is computed on the whitened human means at once (one matrix product),
@@ -47,6 +48,11 @@ UPDATED_RESPONSIBILITY = 1e-3
 #: shared scale is more prior than data, a demonstration joins it, another component merges with it
 #: and, at run time, it explains a motion only within ``LibraryConfig.single_demo_quantile``.
 YOUNG_SUPPORT = 1.5
+#: The split's within-share test (``LibraryConfig.split_within_share``) holds once both sub-clusters have
+#: this support: a half of one demonstration has no spread, one of a few says little of it (and the halves'
+#: selection after the fact moves their distance little). The splits of LASA-30 (halves of 1-4) and of
+#: the synthetic 1000 skills (1-2) are not touched; those of a skill shown 50-100 times are (halves of 10-100).
+SPLIT_SHARE_SUPPORT = 5.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -104,6 +110,9 @@ class Components:
         Mean normalized path length of each component's demonstrations.
     tested, missed : arrays, shape (K, B)
         The components' records of beginnings (``Cluster.tested``, ``Cluster.missed``).
+    sub_within_h : array, shape (K, h, h)
+        The human block of the two sub-clusters' scatters, summed (what :func:`within_share` reads;
+        derived, never stored).
     merge_bound : array, shape (K,)
         Bounds of the two-sample distances under the metric of ``bound_ref``: every pair's
         distance is at least the smaller of its two components' bounds (0: unknown; not each
@@ -124,6 +133,7 @@ class Components:
     path_length: np.ndarray = field(default_factory=lambda: np.zeros(0))
     tested: np.ndarray = field(default_factory=lambda: np.zeros((0, len(BEGINNING_FRACTIONS))))
     missed: np.ndarray = field(default_factory=lambda: np.zeros((0, len(BEGINNING_FRACTIONS))))
+    sub_within_h: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)))
     merge_bound: np.ndarray = field(default_factory=lambda: np.zeros(0))
     bound_ref: np.ndarray | None = None
 
@@ -144,16 +154,16 @@ class Components:
         K = len(items)
         B = len(BEGINNING_FRACTIONS)
         if K:
-            means, support, created, sub_means, sub_support, ids, paths, tested, missed = (np.array(x) for x in
-                                                                                          zip(*rows))
+            means, support, created, sub_means, sub_support, ids, paths, tested, missed, within = (
+                np.array(x) for x in zip(*rows))
         else:
             means, support, created = np.zeros((0, n_human)), np.zeros(0), np.zeros(0, dtype=np.int64)
             sub_means, sub_support, ids, paths = np.zeros((0, 2, n_human)), np.zeros((0, 2)), np.zeros(0), np.zeros(0)
-            tested, missed = np.zeros((0, B)), np.zeros((0, B))
+            tested, missed, within = np.zeros((0, B)), np.zeros((0, B)), np.zeros((0, n_human, n_human))
         return cls._frozen(items, means.reshape(K, n_human), support.astype(float), created.astype(np.int64),
                            sub_means.reshape(K, 2, n_human), sub_support.reshape(K, 2), ids.astype(np.int64),
                            paths.astype(float), tested.reshape(K, B).astype(float), missed.reshape(K, B).astype(float),
-                           np.zeros(K))
+                           within.reshape(K, n_human, n_human).astype(float), np.zeros(K))
 
     @classmethod
     def _frozen(cls, items, *arrays, bound_ref: np.ndarray | None = None) -> "Components":
@@ -180,15 +190,18 @@ class Components:
 
 def _rows(c: ComponentModel, h: int):
     """The stacked data of one component: mean, support, created, sub-cluster means and supports, id, path length,
-    record of beginnings."""
+    record of beginnings, the sub-clusters' summed human scatter."""
     a, b = c.subclusters
     sm = np.zeros((2, h))
     ss = np.zeros(2)
+    sw = np.zeros((h, h))
     sm[0], ss[0] = a.mean[:h], a.support
     if b is not None:
         sm[1], ss[1] = b.mean[:h], b.support
+        F = np.column_stack([a.factor[:h], b.factor[:h]])
+        sw = F @ F.T
     return (c.cluster.mean[:h], c.cluster.support, c.created, sm, ss, c.id, c.cluster.path_length, c.cluster.tested,
-            c.cluster.missed)
+            c.cluster.missed, sw)
 
 
 class _Work:
@@ -214,6 +227,7 @@ class _Work:
         self._paths = _grown(comps.path_length, cap)
         self._tested = _grown(comps.tested, cap)
         self._missed = _grown(comps.missed, cap)
+        self._within = _grown(comps.sub_within_h, cap)
         self._bound = _grown(comps.merge_bound, cap)
         self.bound_ref = comps.bound_ref
         self.n = K
@@ -244,13 +258,17 @@ class _Work:
         return self._ids[:self.n]
 
     @property
+    def sub_within_h(self) -> np.ndarray:
+        return self._within[:self.n]
+
+    @property
     def merge_bound(self) -> np.ndarray:
         """Writable: the rows' merge bounds (see :class:`Components`; 0 once the row changed)."""
         return self._bound[:self.n]
 
     def _buffers(self) -> tuple:
         return (self._means, self._support, self._created, self._sub_means, self._sub_support, self._ids,
-                self._paths, self._tested, self._missed, self._bound)
+                self._paths, self._tested, self._missed, self._within, self._bound)
 
     def set(self, i: int, c: ComponentModel) -> None:
         self.items[i] = c
@@ -262,7 +280,8 @@ class _Work:
         if self.n == self._means.shape[0]:
             cap = 2 * self.n + 4
             (self._means, self._support, self._created, self._sub_means, self._sub_support, self._ids,
-             self._paths, self._tested, self._missed, self._bound) = (_grown(a[:self.n], cap) for a in self._buffers())
+             self._paths, self._tested, self._missed, self._within, self._bound) = (
+                _grown(a[:self.n], cap) for a in self._buffers())
         self.items.append(None)
         self.n += 1
         self.set(self.n - 1, c)
@@ -380,6 +399,41 @@ def two_sample_d2(whitened: np.ndarray, support: np.ndarray, i: int) -> np.ndarr
     d2 = np.einsum("ij,ij->i", diff, diff) / (1.0 / support + 1.0 / support[i])
     d2[i] = np.inf
     return d2
+
+
+def within_share(a: Cluster, b: Cluster, metric: Metric, h: int) -> float:
+    """The share of a component's spread along the line through its sub-clusters' means that lies within them.
+
+    With the whitened difference ``dz`` of the two human means, ``u = dz / |dz|``, the
+    sub-clusters' scatters ``S_a``, ``S_b`` (whitened) and supports ``s_a``, ``s_b``::
+
+        W = u' (S_a + S_b) u,    B = s_a s_b / (s_a + s_b) |dz|^2,    share = W / (W + B)
+
+    (1 - share is the part of the spread along ``u`` that lies between the two means). A Gaussian
+    cut at its mean leaves 1 - 2/pi = 0.36 within the halves, two equal Gaussians D standard
+    deviations apart ``1 / (1 + D^2 / 4)``. Sub-clusters of one demonstration each have no scatter:
+    0. Identical means: 1.
+    """
+    dz = metric.whiten(a.mean[:h] - b.mean[:h])
+    between = float(dz @ dz)
+    if not between > 0.0:
+        return 1.0
+    v = (dz / np.sqrt(between)) @ metric.inv_chol  # u' L^-1: the whitened direction in raw human weights
+    within = sum(float(np.sum((v @ cl.factor[:h]) ** 2)) for cl in (a, b))
+    between *= a.support * b.support / (a.support + b.support)
+    return within / (within + between)
+
+
+def _within_shares(work: "_Work", rows: np.ndarray, dz: np.ndarray, metric: Metric) -> list[float]:
+    """:func:`within_share` of the components in ``rows`` at once; ``dz`` (len(rows), h): their halves' whitened
+    mean differences (nonzero: the rows passed the split quantile)."""
+    if not rows.size:
+        return []
+    between = np.einsum("ij,ij->i", dz, dz)
+    v = (dz / np.sqrt(between)[:, None]) @ metric.inv_chol
+    within = np.einsum("ri,rij,rj->r", v, work.sub_within_h[rows], v)
+    sa, sb = work.sub_support[rows, 0], work.sub_support[rows, 1]
+    return (within / (within + between * sa * sb / (sa + sb))).tolist()
 
 
 def distance_shrink(inv_chol_old: np.ndarray | None, metric: Metric) -> float:
@@ -586,16 +640,21 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
         if both.any():
             dz = metric.whiten(work.sub_means_h[:, 0] - work.sub_means_h[:, 1])
             d2s = np.where(both, np.einsum("ij,ij->i", dz, dz) / (1.0 / sa + 1.0 / np.where(both, sb, 1.0)), 0.0)
-            for i in np.flatnonzero(rule.splits(d2s, h) & both):
+            rows = np.flatnonzero(rule.splits(d2s, h) & both)
+            shares = _within_shares(work, rows, dz[rows], metric)
+            for i, share in zip(rows, shares):
                 c = work.items[int(i)]
                 a, b = c.subclusters
+                if share > config.split_within_share and min(a.support, b.support) >= SPLIT_SHARE_SUPPORT:
+                    continue  # one skill cut in two after the fact, not two skills
                 g = np.sqrt(a.support * b.support / c.support) * (a.mean - b.mean)
                 scale = scale.with_scatter(g, -1.0, -1.0)
                 # the first sub-cluster keeps the id (after a merge: the kept component's own half)
                 work.set(int(i), ComponentModel(c.id, c.created, a, (a, None)))
                 work.append(ComponentModel(next_id, c.created, b, (b, None)))
                 split.append((c.id, next_id))
-                history.append({"event": "split", "id": c.id, "new": next_id, "demo": demo_index})
+                history.append({"event": "split", "id": c.id, "new": next_id, "demo": demo_index,
+                                "within": round(share, 6)})
                 next_id += 1
 
     # 6. delete outliers: past their deletion age with too little support

@@ -7,7 +7,7 @@ import pytest
 
 from drake_skills import Demonstration, LibraryConfig, SkillLibrary
 from drake_skills.library import algorithm, scale as scale_mod
-from drake_skills.library.algorithm import ComponentModel, Components, fold_in
+from drake_skills.library.algorithm import ComponentModel, Components, Metric, fold_in, within_share
 from drake_skills.library.incremental import UnknownSkillError
 from drake_skills.library.novelty import Chi2Rule, LogLikRule, chi2_ppf, novelty_rule
 from drake_skills.library.scale import Cluster, SharedScale, gating_covariance, shared_covariance
@@ -322,6 +322,57 @@ def test_merge_pools_the_moments_and_supports_of_both_components():
     assert step.scale.dof == pytest.approx(sc.dof + sum(v for v in lam.values() if v >= 1e-3) + 1.0)
 
 
+def _cluster_of(points: np.ndarray) -> Cluster:
+    """The exact moments of ``points`` (n, d) as a Cluster (scatter factor: its Cholesky factor)."""
+    mean = points.mean(axis=0)
+    scatter = (points - mean).T @ (points - mean)
+    return Cluster(float(len(points)), mean, np.linalg.cholesky(scatter), 1.0, 1.0)
+
+
+def test_within_share_tells_two_skills_from_one_cut_in_half():
+    """``within_share``: a Gaussian cut at its mean keeps 1 - 2/pi of its spread along the cut's normal
+    within the halves, two equal Gaussians D standard deviations apart 1 / (1 + D^2 / 4), both in any
+    metric's whitened units; one demonstration per half 0, identical means 1."""
+    rng = np.random.default_rng(0)
+    d, n = 4, 40000
+    A = rng.normal(size=(d, d)) + 2 * np.eye(d)
+    cov = A @ A.T
+    metric = Metric.of(cov)
+    x = rng.multivariate_normal(np.zeros(d), cov, n)
+    z = metric.whiten(x)
+    side = z[:, 0] > 0   # cut at the mean, normal to a whitened axis
+    share = within_share(_cluster_of(x[side]), _cluster_of(x[~side]), metric, d)
+    assert share == pytest.approx(1 - 2 / np.pi, abs=0.01)
+    # two skills 4 standard deviations apart along a whitened direction (the default's bound, 0.2)
+    for D, expected in ((4.0, 0.2), (8.0, 1 / 17)):
+        shift = metric.chol @ np.array([D, 0.0, 0.0, 0.0])
+        half = rng.multivariate_normal(np.zeros(d), cov, (2, n // 2))
+        share = within_share(_cluster_of(half[0]), _cluster_of(half[1] + shift), metric, d)
+        assert share == pytest.approx(expected, rel=0.03)
+    one, other = Cluster.of_sample(np.zeros(d), 1.0, 1.0), Cluster.of_sample(np.ones(d), 1.0, 1.0)
+    assert within_share(one, other, metric, d) == 0.0
+    assert within_share(one, Cluster.of_sample(np.zeros(d), 1.0, 1.0), metric, d) == 1.0
+
+
+def test_a_skill_shown_hundreds_of_times_is_not_split_in_two():
+    """Each demonstration joins the nearer of its component's two sub-clusters, so the halves' two-sample
+    distance grows with the support even when the skill is one Gaussian: without the within-share test
+    two synthetic skills shown 150 times each split into 4-6 components, with it they stay 2."""
+    from drake_skills.benchmarks.library import _demo, _skill_bank
+
+    def components(share):
+        rng = np.random.default_rng(1)
+        bank = _skill_bank(2, rng)
+        lib = SkillLibrary(LibraryConfig(n_basis_human=7, n_basis_robot=5, split_within_share=share))
+        for n in range(300):
+            lib.partial_fit(_demo(bank, n % 2, rng))
+        return lib.n_components, [e["within"] for e in lib.history if e["event"] == "split"]
+
+    n_old, shares = components(1.0)   # the distance test alone
+    assert n_old >= 4 and len(shares) >= 2 and min(shares) > 0.25   # halves of one skill, not two skills
+    assert components(0.2) == (2, [])
+
+
 def test_consolidation_makes_a_merge_harder_as_support_grows():
     rule = Chi2Rule(0.999, 0.999, 0.9999, consolidation=0.5)
     d2 = np.array([10.0])
@@ -358,8 +409,10 @@ def test_a_component_whose_halves_drift_apart_splits_into_them():
     np.testing.assert_allclose(kept.cluster.mean, ref.mean)
     np.testing.assert_allclose(kept.cluster.scatter, ref.scatter, atol=1e-12)
     assert new.cluster.duration == 3.0 and new.subclusters == (new.cluster, None)
-    assert [e for e in step.history if e["event"] == "split"] == [{"event": "split", "id": 0, "new": 1,
-                                                                    "demo": 10}]
+    (event,) = [e for e in step.history if e["event"] == "split"]
+    # the halves, 30 apart against a scatter of 0.01 per axis, lie apart as two skills do
+    assert {k: event[k] for k in ("id", "new", "demo")} == {"id": 0, "new": 1, "demo": 10}
+    assert 0.0 < event["within"] <= cfg.split_within_share
     assert step.scale.dof == pytest.approx(sc.dof + 1.0 - 1.0)  # +1 the update, -1 the split
 
 
@@ -666,6 +719,12 @@ def test_observation_noise_is_learned_from_what_the_basis_cannot_hold():
     assert fits.shape == (100, lib.config.n_basis_human)
     rec = lib.recognize(wave(0.1).human)  # whole motion, phase estimated
     assert rec.status == "skill" and rec.phase > 0.9
+
+
+@pytest.mark.parametrize("bad", [0.0, -0.1, 1.5, float("nan"), True])
+def test_split_within_share_outside_0_1_is_refused(bad):
+    with pytest.raises(ValueError, match=r"split_within_share must (be in \(0, 1\] \(1: off\)|be a number)"):
+        LibraryConfig(split_within_share=bad)
 
 
 def test_a_few_far_apart_samples_that_read_as_noise_are_refused_with_the_reason_and_the_library_unchanged():

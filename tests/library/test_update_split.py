@@ -103,7 +103,36 @@ def test_a_component_splits_when_its_halves_are_beyond_the_split_quantile(factor
     gap = np.sqrt(2.0 * s_b / (2.0 + s_b)) * (a.mean - b.mean)
     np.testing.assert_allclose(st.scale.pooled, before.pooled - np.outer(gap, gap), rtol=1e-12, atol=1e-6)
     assert st.scale.dof == pytest.approx(before.dof - 1.0, abs=1e-6)
-    assert lib.history[-1] == {"event": "split", "id": 3, "new": 6, "demo": 8}
+    event = dict(lib.history[-1])
+    assert 0.0 <= event.pop("within") <= cfg.split_within_share   # scatter 0.05 per entry: apart as two skills
+    assert event == {"event": "split", "id": 3, "new": 6, "demo": 8}
+
+
+@pytest.mark.parametrize("share, s_a, splits", [(0.15, 5.0, True), (0.3, 5.0, False), (0.3, 4.0, True)])
+def test_halves_beyond_the_split_quantile_split_only_if_they_lie_apart_as_two_skills(share, s_a, splits):
+    """Halves of supports 5 and 8 at 1.5 x the split quantile of the two-sample distance, each spread along the
+    line through their means so that ``share`` of the component's spread along it lies within them (the
+    analytic value under the library's isotropic metric, recorded with the split): at 0.15 (below the default
+    0.2) they split, at 0.3 (one skill cut in two keeps 0.36) they stay one component. With a half of support
+    4 (below ``SPLIT_SHARE_SUPPORT``) the share is recorded but not held against the split."""
+    cfg, demo, w, g = _demo_and_scale(var=0.5)
+    rng = np.random.default_rng(4)
+    far = w + 40.0 * np.sqrt(g) * ls.unit(rng, H)
+    e = ls.unit(rng, H)
+    between = 1.5 * THR_SPLIT   # whitened: s_a s_b / (s_a + s_b) |dz|^2 / g
+    dz = np.sqrt(between * (1 / s_a + 1 / 8.0) * g) * e
+    within = share / (1.0 - share) * between   # u' (S_a + S_b) u / g, half each
+    col = np.sqrt(within / 2.0 * g) * e[:, None]
+    a = Cluster(s_a, far + dz, col, 1.5, 4.0)
+    b = Cluster(8.0, far, col.copy(), 2.5, 6.0)
+    lib = ls.library(cfg, [ComponentState(3, 6, a.pool(b)[0], (a, b))], dim_human=3, dim_robot=0, n_seen=8,
+                     next_id=5, var=0.5)
+    u = lib.partial_fit(demo)
+    assert u.created == (5,)
+    if splits:
+        assert u.split == ((3, 6),) and lib.history[-1]["within"] == pytest.approx(share, rel=1e-3)
+    else:
+        assert u.split == () and [c.id for c in lib.components] == [3, 5]
 
 
 def test_a_component_without_a_second_half_never_splits_and_no_warning_is_raised():
