@@ -211,10 +211,21 @@ def _recorded(tested: np.ndarray, missed: np.ndarray, lam: float, outcome) -> tu
 
 
 def _compress(factor: np.ndarray) -> np.ndarray:
-    """An equivalent factor with at most ``d`` columns (``F F^T`` unchanged)."""
+    """An equivalent factor with at most ``d`` columns (``F F^T`` unchanged).
+
+    A full lower-triangular factor with one column appended (a cluster's update once it has more
+    members than dimensions: every update from then on) is re-triangularized by Givens rotations
+    (``scipy.linalg.qr_insert``: O(d^2), about 7x faster than the QR at d = 150); anything else by a QR.
+    """
     d, r = factor.shape
     if r <= d:
         return factor
+    if r == d + 1 and not np.triu(factor[:, :d], 1).any():
+        from scipy.linalg import qr_insert  # noqa: PLC0415 (scipy.linalg is slow to import; only for full factors)
+
+        # [L g]^T = [L^T; g^T]: insert the row g^T into the QR (Q = I, R = L^T) of L^T
+        R = qr_insert(np.eye(d), factor[:, :d].T, factor[:, d], d, which="row", check_finite=False)[1]
+        return np.ascontiguousarray(R[:d].T)
     R = np.linalg.qr(factor.T, mode="r")  # F^T = Q R  =>  F F^T = R^T R
     return np.ascontiguousarray(R.T)
 

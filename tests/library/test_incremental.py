@@ -47,6 +47,27 @@ def test_cluster_add_equals_exact_weighted_moments():
     assert cl.factor.shape[1] <= d  # compressed, not one column per sample
 
 
+@pytest.mark.parametrize("case", ["triangular", "triangular, rank-deficient", "square, not triangular", "wide"])
+def test_a_compressed_factor_keeps_the_scatter_and_is_lower_triangular(case):
+    """``scale._compress``: a full lower-triangular factor plus one column (the Givens path every update takes
+    once a cluster has more members than dimensions) and any other factor (the QR path) give a d-column lower-
+    triangular factor of the same scatter F F^T."""
+    rng = np.random.default_rng(3)
+    d = 6
+    if case.startswith("triangular"):
+        L = np.tril(rng.standard_normal((d, d)))
+        if "deficient" in case:
+            L[:, 2] = 0.0
+        F = np.column_stack([L, rng.standard_normal(d)])
+    elif case == "square, not triangular":
+        F = np.column_stack([rng.standard_normal((d, d)), rng.standard_normal(d)])
+    else:
+        F = rng.standard_normal((d, 3 * d))
+    C = scale_mod._compress(F)
+    assert C.shape == (d, d) and not np.triu(C, 1).any()
+    np.testing.assert_allclose(C @ C.T, F @ F.T, rtol=1e-12, atol=1e-12)
+
+
 def test_cluster_pool_equals_moments_of_the_union():
     """The corrected Eq. (11): pooling two clusters gives the support, mean and scatter of all their samples."""
     rng = np.random.default_rng(2)
