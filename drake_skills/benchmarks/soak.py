@@ -28,6 +28,7 @@ from drake_skills.data.demonstration import Demonstration
 from drake_skills.data.synthetic import skill_bank
 from drake_skills.library.incremental import LibraryConfig, SkillLibrary
 from drake_skills.library.invariants import invariant_violations
+from drake_skills.library.views import StillMotionError
 
 log = logging.getLogger(__name__)
 
@@ -76,8 +77,8 @@ def soak(n_updates: int, n_skills: int, *, config: LibraryConfig | None = None, 
         ``violations`` (list of (update, message)), ``checks``, ``kinds`` (counts),
         ``wall`` and ``cpu`` (n_updates,) seconds per update, ``K`` (n_updates,)
         components after each update, ``events`` (history counts), ``refused`` (updates that raised
-        ``ValueError`` and left the library as it was: 5-sample motions whose samples read as tracker
-        noise), ``library``.
+        ``StillMotionError``: 5-sample motions whose samples read as tracker noise; a refused motion of
+        another kind, or one that changed the library, is a violation), ``library``.
     """
     rng = np.random.default_rng(seed)
     bank = skill_bank(n_skills, rng)
@@ -99,13 +100,16 @@ def soak(n_updates: int, n_skills: int, *, config: LibraryConfig | None = None, 
                 demo = _variant(kind, bank.demo(int(rng.integers(taught)), rng, scatter=scatter), rng)
             counts[kind] += 1
             c0, t0 = time.process_time(), time.perf_counter()
-            seen = lib.n_seen
+            before = (lib.n_seen, lib.n_components, len(lib.history))
             try:
                 lib.partial_fit(demo)
-            except ValueError:  # refused (a 5-sample motion may read as tracker noise): the library is unchanged
+            except StillMotionError as e:  # a 5-sample motion may read as tracker noise: refused, the library unchanged
                 refused += 1
-                if lib.n_seen != seen:
-                    violations.append((i + 1, f"a refused update changed n_seen from {seen} to {lib.n_seen}"))
+                if kind != "short":
+                    violations.append((i + 1, f"a {kind} demonstration was refused: {e}"))
+                if (lib.n_seen, lib.n_components, len(lib.history)) != before:
+                    violations.append((i + 1, f"a refused update changed (n_seen, K, history) from {before} to "
+                                              f"{(lib.n_seen, lib.n_components, len(lib.history))}"))
             wall[i], cpu[i] = time.perf_counter() - t0, time.process_time() - c0
             last = demo
             K[i] = lib.n_components

@@ -86,6 +86,19 @@ class ComponentModel:
     def mean(self) -> np.ndarray:
         return self.cluster.mean
 
+    def sub_within(self, h: int) -> np.ndarray:
+        """(h, h): the human block of its two sub-clusters' scatters, summed (0 without a second one); what
+        :func:`within_share` reads. Computed once per component (components are immutable) and kept with it,
+        so a split check costs no copy of K such matrices."""
+        cached = self.__dict__.get("_sub_within")
+        if cached is None or cached.shape[0] != h:
+            a, b = self.subclusters
+            F = np.column_stack([a.factor[:h], b.factor[:h]]) if b is not None else np.zeros((h, 0))
+            cached = F @ F.T
+            cached.setflags(write=False)
+            object.__setattr__(self, "_sub_within", cached)   # a cache of derived data; the dataclass stays frozen
+        return cached
+
 
 @dataclass(frozen=True, eq=False)
 class Components:
@@ -110,9 +123,6 @@ class Components:
         Mean normalized path length of each component's demonstrations.
     tested, missed : arrays, shape (K, B)
         The components' records of beginnings (``Cluster.tested``, ``Cluster.missed``).
-    sub_within_h : array, shape (K, h, h)
-        The human block of the two sub-clusters' scatters, summed (what :func:`within_share` reads;
-        derived, never stored).
     merge_bound : array, shape (K,)
         Bounds of the two-sample distances under the metric of ``bound_ref``: every pair's
         distance is at least the smaller of its two components' bounds (0: unknown; not each
@@ -133,7 +143,6 @@ class Components:
     path_length: np.ndarray = field(default_factory=lambda: np.zeros(0))
     tested: np.ndarray = field(default_factory=lambda: np.zeros((0, len(BEGINNING_FRACTIONS))))
     missed: np.ndarray = field(default_factory=lambda: np.zeros((0, len(BEGINNING_FRACTIONS))))
-    sub_within_h: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)))
     merge_bound: np.ndarray = field(default_factory=lambda: np.zeros(0))
     bound_ref: np.ndarray | None = None
 
@@ -154,16 +163,16 @@ class Components:
         K = len(items)
         B = len(BEGINNING_FRACTIONS)
         if K:
-            means, support, created, sub_means, sub_support, ids, paths, tested, missed, within = (
-                np.array(x) for x in zip(*rows))
+            means, support, created, sub_means, sub_support, ids, paths, tested, missed = (np.array(x) for x in
+                                                                                          zip(*rows))
         else:
             means, support, created = np.zeros((0, n_human)), np.zeros(0), np.zeros(0, dtype=np.int64)
             sub_means, sub_support, ids, paths = np.zeros((0, 2, n_human)), np.zeros((0, 2)), np.zeros(0), np.zeros(0)
-            tested, missed, within = np.zeros((0, B)), np.zeros((0, B)), np.zeros((0, n_human, n_human))
+            tested, missed = np.zeros((0, B)), np.zeros((0, B))
         return cls._frozen(items, means.reshape(K, n_human), support.astype(float), created.astype(np.int64),
                            sub_means.reshape(K, 2, n_human), sub_support.reshape(K, 2), ids.astype(np.int64),
                            paths.astype(float), tested.reshape(K, B).astype(float), missed.reshape(K, B).astype(float),
-                           within.reshape(K, n_human, n_human).astype(float), np.zeros(K))
+                           np.zeros(K))
 
     @classmethod
     def _frozen(cls, items, *arrays, bound_ref: np.ndarray | None = None) -> "Components":
@@ -190,18 +199,15 @@ class Components:
 
 def _rows(c: ComponentModel, h: int):
     """The stacked data of one component: mean, support, created, sub-cluster means and supports, id, path length,
-    record of beginnings, the sub-clusters' summed human scatter."""
+    record of beginnings."""
     a, b = c.subclusters
     sm = np.zeros((2, h))
     ss = np.zeros(2)
-    sw = np.zeros((h, h))
     sm[0], ss[0] = a.mean[:h], a.support
     if b is not None:
         sm[1], ss[1] = b.mean[:h], b.support
-        F = np.column_stack([a.factor[:h], b.factor[:h]])
-        sw = F @ F.T
     return (c.cluster.mean[:h], c.cluster.support, c.created, sm, ss, c.id, c.cluster.path_length, c.cluster.tested,
-            c.cluster.missed, sw)
+            c.cluster.missed)
 
 
 class _Work:
@@ -227,7 +233,6 @@ class _Work:
         self._paths = _grown(comps.path_length, cap)
         self._tested = _grown(comps.tested, cap)
         self._missed = _grown(comps.missed, cap)
-        self._within = _grown(comps.sub_within_h, cap)
         self._bound = _grown(comps.merge_bound, cap)
         self.bound_ref = comps.bound_ref
         self.n = K
@@ -258,17 +263,13 @@ class _Work:
         return self._ids[:self.n]
 
     @property
-    def sub_within_h(self) -> np.ndarray:
-        return self._within[:self.n]
-
-    @property
     def merge_bound(self) -> np.ndarray:
         """Writable: the rows' merge bounds (see :class:`Components`; 0 once the row changed)."""
         return self._bound[:self.n]
 
     def _buffers(self) -> tuple:
         return (self._means, self._support, self._created, self._sub_means, self._sub_support, self._ids,
-                self._paths, self._tested, self._missed, self._within, self._bound)
+                self._paths, self._tested, self._missed, self._bound)
 
     def set(self, i: int, c: ComponentModel) -> None:
         self.items[i] = c
@@ -280,8 +281,7 @@ class _Work:
         if self.n == self._means.shape[0]:
             cap = 2 * self.n + 4
             (self._means, self._support, self._created, self._sub_means, self._sub_support, self._ids,
-             self._paths, self._tested, self._missed, self._within, self._bound) = (
-                _grown(a[:self.n], cap) for a in self._buffers())
+             self._paths, self._tested, self._missed, self._bound) = (_grown(a[:self.n], cap) for a in self._buffers())
         self.items.append(None)
         self.n += 1
         self.set(self.n - 1, c)
@@ -429,11 +429,12 @@ def _within_shares(work: "_Work", rows: np.ndarray, dz: np.ndarray, metric: Metr
     mean differences (nonzero: the rows passed the split quantile)."""
     if not rows.size:
         return []
+    h = dz.shape[1]
     between = np.einsum("ij,ij->i", dz, dz)
     v = (dz / np.sqrt(between)[:, None]) @ metric.inv_chol
-    within = np.einsum("ri,rij,rj->r", v, work.sub_within_h[rows], v)
+    within = np.einsum("ri,rij,rj->r", v, np.stack([work.items[int(i)].sub_within(h) for i in rows]), v)
     sa, sb = work.sub_support[rows, 0], work.sub_support[rows, 1]
-    return (within / (within + between * sa * sb / (sa + sb))).tolist()
+    return (within / (within + between * sa * sb / work.support[rows])).tolist()
 
 
 def distance_shrink(inv_chol_old: np.ndarray | None, metric: Metric) -> float:

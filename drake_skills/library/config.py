@@ -186,9 +186,9 @@ class LibraryConfig:
     #: component's spread lies within the sub-clusters (1 - between / total). The sub-clusters are
     #: chosen after the fact (each demonstration joins the nearer), so their two-sample distance
     #: grows with the support even when the skill is one Gaussian: cut in two at its mean, one
-    #: Gaussian leaves 1 - 2/pi = 0.36 of its spread within the halves, two equal skills 4 of their
-    #: own standard deviations apart leave 0.2. Without this test every skill shown 50-100 times
-    #: split in two (5 synthetic skills repeated 1200 times: 15 components; 5 with it). It holds
+    #: Gaussian leaves about 1 - 2/pi = 0.36 of its spread within large halves, two equal skills 4 of
+    #: their own standard deviations apart leave 0.2. Without this test every skill shown 50-100 times
+    #: split in two (5 synthetic skills shown 240 times each: 15 components; 5 with it). It holds
     #: once both sub-clusters have a support of ``algorithm.SPLIT_SHARE_SUPPORT`` (5). A deviation
     #: from the paper, which has no split; 1 turns the test off (files written before 2026-12-05
     #: load with 1).

@@ -34,7 +34,8 @@ def test_the_soak_counts_a_violation_when_the_library_breaks_an_invariant(monkey
 
 def test_the_soak_goes_on_past_a_refused_demonstration_and_checks_it_left_the_library_alone():
     """Of the 60-skill bank's 5-sample motions some read as tracker noise and are refused (StillMotionError):
-    the stream goes on, the refusals are counted, and n_seen counts only the updates that happened."""
+    the stream goes on, the refusals are counted (a refusal of any other kind, or one that changed the library,
+    would be a violation), and n_seen counts only the updates that happened."""
     out = soak.soak(400, 60)
     assert out["refused"] > 0 and out["refused"] <= out["kinds"]["short"]
     assert out["violations"] == []

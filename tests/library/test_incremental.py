@@ -375,7 +375,7 @@ def test_within_share_tells_two_skills_from_one_cut_in_half():
     assert within_share(one, Cluster.of_sample(np.zeros(d), 1.0, 1.0), metric, d) == 1.0
 
 
-def test_a_skill_shown_hundreds_of_times_is_not_split_in_two():
+def test_a_skill_shown_150_times_is_not_split_in_two():
     """Each demonstration joins the nearer of its component's two sub-clusters, so the halves' two-sample
     distance grows with the support even when the skill is one Gaussian: without the within-share test
     two synthetic skills shown 150 times each split into 4-6 components, with it they stay 2."""
