@@ -30,8 +30,8 @@ from drake_skills.evaluation.labeled import fractions_of
 from drake_skills.evaluation.salad_data import SaladContext, SaladSettings, load_salad_data
 from drake_skills.evaluation.salad_figures import fig_classification, fig_response, fig_task_components, fig_transfer
 from drake_skills.evaluation.salad_kl import kl_table, kl_trial
-from drake_skills.evaluation.salad_personal import (PersonalContext, classification_tables, components_table,
-                                                    personal_trial, response_tables)
+from drake_skills.evaluation.salad_personal import (PersonalContext, classification_tables, commits_table,
+                                                    components_table, personal_trial, response_tables)
 from drake_skills.evaluation.salad_transfer import (task_components_tables, task_components_trial, transfer_table,
                                                     transfer_trial)
 
@@ -91,6 +91,7 @@ def evaluate_salad(settings: SaladSettings | None = None, *, workers: int = 1, p
     cls_long, cls_mat, all_personal = classification_tables(s, names, personal)
     comp = components_table(s, names, personal)
     resp, early, early_summary, resp_rows, anticipation = response_tables(s, personal)
+    commits, commits_summary = commits_table(s, personal)
     kl_t, ks, inc, em = kl_table(s, kl)
     tc_long, tc_mat, tc_summary = task_components_tables(s, tc)
     tr_t, tr_acc = transfer_table(s, names, tr)
@@ -99,7 +100,7 @@ def evaluate_salad(settings: SaladSettings | None = None, *, workers: int = 1, p
         "classification": cls_long, "classification_matrix": cls_mat, "components_per_subject": comp,
         "kl_vs_demos": kl_t, "components_per_task": tc_long, "components_per_task_matrix": tc_mat,
         "transfer": tr_t, "response_vs_fraction": resp, "earliest_decision": early,
-        "anticipation": anticipation})
+        "anticipation": anticipation, "commits": commits})
     full = s.grid().index(1.0)
     rep.summary = {
         "settings": s.resolved(),
@@ -115,6 +116,7 @@ def evaluate_salad(settings: SaladSettings | None = None, *, workers: int = 1, p
         "earliest_decision_fraction": early_summary,
         "anticipation": {str(r[0]): dict(zip(anticipation.columns[1:], r[1:])) for r in anticipation.rows},
         "response_at_full_observation": dict(zip(resp.columns, resp_rows[full])),
+        "commits": commits_summary,
         "seconds": seconds,
     }
     if figures:

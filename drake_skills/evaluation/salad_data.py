@@ -63,6 +63,9 @@ class SaladSettings:
     transfer_train: int | None = None
     #: Test demonstrations per task of the held-out subject in Fig. 9 (None: min(5, n_demos)).
     transfer_test: int | None = None
+    #: Splits per subject whose test motions are also replayed through the controller's decision logic
+    #: (the commits table: first commit, path share at it, skill executed; about 0.1 s per motion).
+    commit_splits: int = 2
     #: Observed fractions of the test motion's path for the response error.
     fractions: tuple[float, ...] = _DEFAULT_FRACTIONS
     #: P(correct) the earliest-decision fraction must reach.
@@ -119,6 +122,7 @@ class SaladSettings:
         positive_int("trials", self.trials)
         positive_int("kl_samples", self.kl_samples)
         positive_int("em_n_init", self.em_n_init)
+        positive_int("commit_splits", self.commit_splits, 0)
         if self.subject_model not in SUBJECT_MODELS:
             raise ValueError(f"SaladSettings.subject_model must be one of {SUBJECT_MODELS}, got {self.subject_model!r}")
         if self.data_seed < 0:

@@ -77,6 +77,12 @@ class PersonalTrial:
     #: Decisions and estimated phases without the fraction given (see :class:`ResponseErrors`).
     anticipated: np.ndarray
     phase: np.ndarray
+    #: The controller's decision logic replayed on each test motion (``settings.commit_splits`` splits per
+    #: subject; empty otherwise): the first commit's outcome (CORRECT or WRONG; UNKNOWN: none), the share of
+    #: the path done at it (NaN: none) and the outcome of the skill executed at the end.
+    first_commit: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    commit_share: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    executed: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
 
 
 @dataclass(frozen=True, eq=False)
@@ -205,8 +211,57 @@ def personal_trial(ctx: PersonalContext, item: tuple[int, int]) -> PersonalTrial
         lab.teach(train[j], ws)
     grid = s.grid()
     rows = [response_errors(lab, d, ws, grid, ctx.flange_position) for d in test]
+    commits = [replayed_commit(lab, d, ws) for d in test] if split < s.commit_splits else []
+    first, share, executed = (np.array(x) for x in zip(*commits)) if commits else (np.zeros(0, int), np.zeros(0),
+                                                                                  np.zeros(0, int))
     return PersonalTrial(data.subject.name, lab.library.n_components, tuple(d.task for d in test),
-                         **{k: np.stack([getattr(r, k) for r in rows]) for k in ERROR_FIELDS})
+                         **{k: np.stack([getattr(r, k) for r in rows]) for k in ERROR_FIELDS},
+                         first_commit=first.astype(int), commit_share=share.astype(float),
+                         executed=executed.astype(int))
+
+
+def replayed_commit(lab: LabeledLibrary, demo: Demonstration, workspace: Workspace) -> tuple[int, float, int]:
+    """The gating's decision logic on one test motion (``evaluation.interaction.replay_commits``): the first
+    commit's outcome (UNKNOWN: none), the share of the person's path done at it (NaN: none), and the outcome of
+    the skill executed at the end."""
+    from drake_skills.evaluation.interaction import commit_share, replay_commits
+
+    cfg = lab.library.config
+    g, _ = replay_commits(lab.library, demo, workspace)
+    if not g.commits:
+        return UNKNOWN, float("nan"), lab.outcome(g.component, demo.task, g.status)
+    share = commit_share(demo, workspace, cfg.resample_tolerance, g.commit_time, **cfg.walk_options())
+    return lab.outcome(g.commits[0], demo.task), share, lab.outcome(g.component, demo.task, g.status)
+
+
+def commits_table(s: SaladSettings, personal: list[PersonalTrial]) -> tuple[Table, dict]:
+    """Per task and over all: the first commits of the replayed decision logic and the path share at them."""
+    first = np.concatenate([r.first_commit for r in personal])
+    share = np.concatenate([r.commit_share for r in personal])
+    executed = np.concatenate([r.executed for r in personal])
+    tasks = np.concatenate([np.asarray(r.tasks) for r in personal if r.first_commit.size] or [np.zeros(0, str)])
+    rows, summary = [], {}
+    for task in (*s.tasks, "all"):
+        m = np.ones(len(tasks), bool) if task == "all" else tasks == task
+        c = m & np.isfinite(share)
+        n, nc = int(m.sum()), int(c.sum())
+        row = [task, n, nc / max(n, 1), float(np.sum(first[c] == CORRECT)) / max(nc, 1),
+               float(np.sum(first[c] == WRONG)) / max(nc, 1), _nanstat(share[c], np.mean),
+               _nanstat(share[c], np.median), *(fractions_of(executed[m]) if n else [float("nan")] * 3)]
+        rows.append(row)
+        summary[task] = dict(zip(("motions", "committed", "first_commit_correct", "first_commit_wrong",
+                                  "mean_commit_share", "median_commit_share", "executed_correct",
+                                  "executed_wrong", "executed_none"), row[1:]))
+    table = Table(["task", "test motions", "committed", "first commit correct", "first commit wrong",
+                   "mean path share at commit", "median path share at commit", "executed correct",
+                   "executed wrong", "executed none (unknown or undecided)"], rows,
+                  caption=(f"The controller's decision logic (gating_step, default DecisionRule: re-decide every "
+                           f"1/16 s, commit after 2 equal answers) replayed on the test motions of the first "
+                           f"{s.commit_splits} splits per subject, personal libraries: the first commit (correct / "
+                           f"wrong over commits) and the share of the person's path done at it; 'executed' is the "
+                           f"skill the robot runs at the end (a wrong commit revised in time is not executed). The "
+                           f"demo's own stream (a library that learns only when it asks) is benchmarks/demo_replay.py."))
+    return table, summary
 
 
 def _nanstat(a, fn) -> float:

@@ -25,7 +25,7 @@ use_agg()
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 TABLES = ("classification", "classification_matrix", "components_per_subject", "kl_vs_demos",
           "components_per_task", "components_per_task_matrix", "transfer", "response_vs_fraction",
-          "earliest_decision", "anticipation")
+          "earliest_decision", "anticipation", "commits")
 FIGURES = ("classification", "kl_vs_demos", "components_per_task", "transfer", "response_vs_fraction")
 
 
@@ -302,3 +302,37 @@ def test_anticipation_table_counts_four_outcomes_and_the_phase_error(reports):
     full = [r for r in t.rows if r[0] == 1.0][0]
     assert full[5] == pytest.approx(1.0, abs=0.1) and full[6] < 0.1
     assert full[2] == 0.0  # no wrong answer on whole motions
+
+
+def test_commits_table_replays_the_decision_logic_on_the_first_splits(reports):
+    """The commits table: one row per task and 'all', test motions of the first commit_splits splits per subject
+    (quick: 3 subjects x 2 splits x 2 test motions per task), first commits correct + wrong = 1 over commits,
+    path shares at commit in (0, 1], executed outcomes summing to 1; the summary carries the same numbers."""
+    s, rep, _ = reports
+    t = rep.tables["commits"]
+    assert [r[0] for r in t.rows] == [*s.tasks, "all"]
+    per_task = s.n_demos - s.train_per_task
+    expected = s.n_subjects * min(s.commit_splits, s.trials) * per_task
+    for row in t.rows:
+        n, committed, right, wrong, mean_share, median_share = row[1:7]
+        assert n == (expected * len(s.tasks) if row[0] == "all" else expected)
+        assert 0.0 <= committed <= 1.0
+        if committed > 0:
+            assert right + wrong == pytest.approx(1.0) and 0.0 < median_share <= 1.0 and 0.0 < mean_share <= 1.0
+        assert sum(row[7:10]) == pytest.approx(1.0)
+    assert rep.summary["commits"]["all"]["median_commit_share"] == t.rows[-1][6]
+
+
+def test_a_salad_run_with_commit_splits_0_replays_nothing(cache):
+    from drake_skills.evaluation.salad_data import SaladContext
+    from drake_skills.evaluation.salad_personal import PersonalContext, personal_trial
+
+    none = replace(SaladSettings.quick(seed=3), commit_splits=0)
+    ctx = SaladContext.of(none, load_salad_data(none, cache_dir=cache))
+    trial = personal_trial(PersonalContext(ctx), (0, 0))
+    assert trial.first_commit.size == 0 and trial.commit_share.size == 0 and trial.outcome.shape[0] > 0
+
+
+def test_commit_splits_must_be_a_non_negative_integer():
+    with pytest.raises(ValueError, match=r"SaladSettings.commit_splits must be an integer >= 0"):
+        SaladSettings(commit_splits=-1)
