@@ -471,6 +471,26 @@ def test_import_interactions_errors_name_the_file(tmp_path, capsys):
     assert "hr.npz" in err and "[9, 10, 11] out of range" in err, err
 
 
+def test_import_interactions_fills_a_tracker_gap_and_max_gap_0_refuses_it(tmp_path, capsys):
+    """Two lost hand samples: filled by interpolation with a GapWarning by default; with --max-gap 0 an error naming
+    the file, the interaction and its rows."""
+    from drake_skills.data.interaction import GapWarning
+
+    src = _interaction_file(tmp_path / "hr.npz", np.random.default_rng(0))
+    with np.load(src) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["human"][5:7, 7] = np.nan
+    np.savez(tmp_path / "gaps.npz", **arrays)
+    with pytest.warns(GapWarning, match=r"gaps\.npz.*filled 1 run\(s\)"):
+        assert main(["import", "interactions", str(tmp_path / "gaps.npz"), "--out", str(tmp_path / "g")]) == 0
+    d = load_demo(tmp_path / "g" / "train" / "up_00.npz")
+    assert np.isfinite(d.human).all()
+    assert main(["import", "interactions", str(tmp_path / "gaps.npz"), "--max-gap", "0",
+                 "--out", str(tmp_path / "g0")]) == 1
+    err = capsys.readouterr().err
+    assert "gaps.npz" in err and "NaN/inf in interaction 0 at rows 5..6" in err, err
+
+
 def test_three_commands_take_an_interaction_file_to_a_table_of_recognized_test_interactions(tmp_path, capsys):
     src = _interaction_file(tmp_path / "hr.npz", np.random.default_rng(1), n_per=(4, 2))
     assert main(["import", "interactions", str(src), "--out", str(tmp_path / "hr")]) == 0

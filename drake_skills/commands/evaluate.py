@@ -85,6 +85,9 @@ def register(sub) -> None:
                         "e.g. m for a second person's arm)")
     q.add_argument("--rate", type=float, default=100.0,
                    help="sampling rate of the file in Hz (not stated by the source; default 100)")
+    q.add_argument("--max-gap", type=float, default=0.5, metavar="S",
+                   help="fill runs of missing samples (NaN/inf: a tracker that lost the joint) up to S seconds by "
+                        "linear interpolation, with a warning; longer ones are an error (default 0.5; 0: refuse any)")
     q.add_argument("--loo-orders", type=int, default=None,
                    help="orders per held-out interaction of the leave-one-out table (ipromps' protocol over every "
                         "interaction of the file, cut at a share of its samples; default 3, --quick: 1; 0 skips it)")
@@ -124,7 +127,8 @@ def run_interaction(args: argparse.Namespace) -> int:
     if not Path(args.data).is_file():
         raise FileNotFoundError(f"interactions file '{args.data}' does not exist (give --data PATH)")
     orders = args.orders if args.orders is not None else (2 if args.quick else 20)
-    kw = dict(data=str(args.data), columns=args.columns, orders=orders, rate_hz=args.rate, seed=args.seed,
+    kw = dict(data=str(args.data), columns=args.columns, orders=orders, rate_hz=args.rate, max_gap_s=args.max_gap,
+              seed=args.seed,
               library=_library(args), robot_units=args.robot_units, teaching=args.teaching)
     if args.quick:
         kw.update(fractions=(0.1, 0.5, 1.0))

@@ -38,16 +38,19 @@ def register(sub) -> None:
                    help="columns of the human array to use (default 6:9, the hand of buetepage_hr), or a name: "
                         "hand, arm, elbow, shoulder")
     q.add_argument("--rate", type=float, default=RATE_HZ, help=f"sampling rate in Hz (default {RATE_HZ:g})")
+    q.add_argument("--max-gap", type=float, default=0.5, metavar="S",
+                   help="fill runs of missing samples (NaN/inf) up to S seconds by linear interpolation, with a "
+                        "warning; longer ones are an error (default 0.5; 0: refuse any)")
     q.add_argument("--csv", action="store_true", help="write CSV files instead of npz")
     add_out(q, "import", "the demonstration files")
     q.set_defaults(func=run_interactions)
 
 
-def _interactions(path: Path, columns, rate: float):
+def _interactions(path: Path, columns, rate: float, max_gap_s: float = 0.5):
     """``[(Demonstration, split)]`` read by :func:`drake_skills.data.interaction.load_interactions`."""
     from drake_skills.data.interaction import load_interactions
 
-    demos = load_interactions(path, columns=columns, rate_hz=rate)
+    demos = load_interactions(path, columns=columns, rate_hz=rate, max_gap_s=max_gap_s)
     if all(s is None for s in demos.split):
         raise ValueError(f"data set '{path}' has no 'split' array: the workspace is the bounding box of the "
                          f"training split, so the file must say which interactions are for training")
@@ -77,7 +80,7 @@ def run_interactions(args: argparse.Namespace) -> int:
 
     if not args.rate > 0:
         raise ValueError(f"--rate must be positive, got {args.rate}")
-    pairs = _interactions(args.data, column_selection(args.columns, "--columns"), args.rate)
+    pairs = _interactions(args.data, column_selection(args.columns, "--columns"), args.rate, args.max_gap)
     train = [d for d, s in pairs if s == "train"]
     if not train:
         raise ValueError(f"data set '{args.data}': no interaction in the 'train' split; the workspace is the "

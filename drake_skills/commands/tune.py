@@ -26,6 +26,9 @@ def register(sub) -> None:
     p.add_argument("--columns", default="hand", metavar="SEL",
                    help="for an interactions file: the human columns, a name (hand: 6:9 of the buetepage_hr "
                         "layout, default; arm, elbow, shoulder) or START:STOP")
+    p.add_argument("--max-gap", type=float, default=0.5, metavar="S",
+                   help="for an interactions file: fill runs of missing samples (NaN/inf) up to S seconds by "
+                        "linear interpolation, with a warning (default 0.5; 0: refuse any)")
     p.add_argument("--trials", type=int, default=64, help="settings tried (default 64; trial 0 = the base config)")
     p.add_argument("--folds", type=int, default=4, help="cross-validation folds (default 4)")
     p.add_argument("--orders", type=int, default=2, help="presentation orders per fold (default 2)")
@@ -50,7 +53,7 @@ def _load(args) -> list:
         return demos
     if not args.demos.is_file():
         raise FileNotFoundError(f"'{args.demos}' is neither a directory of demonstrations nor a file")
-    demos = load_interactions(args.demos, columns=column_selection(args.columns, "--columns"))
+    demos = load_interactions(args.demos, columns=column_selection(args.columns, "--columns"), max_gap_s=args.max_gap)
     return demos.train if any(s is not None for s in demos.split) else list(demos)
 
 

@@ -169,7 +169,39 @@ def _nan_rows(a: np.ndarray) -> np.ndarray:
     return np.flatnonzero(~np.isfinite(a).all(axis=1))
 
 
-def load_interactions(path, columns=slice(6, 9), rate_hz: float = 100.0) -> Interactions:
+#: Default longest run of missing samples (NaN/inf: a tracker that lost the joint) that
+#: :func:`load_interactions` fills, in seconds (the gating's ``DecisionRule.lost_timeout``).
+MAX_GAP_S = 0.5
+
+
+class GapWarning(UserWarning):
+    """Missing samples (NaN/inf) of an interactions file were filled by linear interpolation."""
+
+
+def _fill_gaps(a: np.ndarray, max_run: int) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """``a`` (T, D) with every run of rows holding NaN/inf filled: linearly between the rows around it, or by the
+    nearest valid row at either end. Returns the filled copy and the runs (start, stop) filled; raises
+    ``ValueError`` (no message: the caller names the place) if a run is longer than ``max_run`` rows or no row
+    is valid."""
+    bad = ~np.isfinite(a).all(axis=1)
+    if not bad.any():
+        return a, []
+    if bad.all():
+        raise ValueError((0, len(a), True))
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], bad.astype(np.int8), [0]])))
+    runs = [(int(b), int(e)) for b, e in zip(edges[::2], edges[1::2])]
+    for b, e in runs:
+        if e - b > max_run:
+            raise ValueError((b, e, False))
+    good = np.flatnonzero(~bad)
+    out = np.array(a, dtype=float)
+    for d in range(a.shape[1]):
+        out[bad, d] = np.interp(np.flatnonzero(bad), good, out[good, d])   # np.interp holds the ends
+    return out, runs
+
+
+def load_interactions(path, columns=slice(6, 9), rate_hz: float = 100.0, *,
+                      max_gap_s: float = MAX_GAP_S) -> Interactions:
     """Read the interactions of a file in the layout above, one :class:`Demonstration` each.
 
     Parameters
@@ -182,6 +214,12 @@ def load_interactions(path, columns=slice(6, 9), rate_hz: float = 100.0) -> Inte
         :data:`COLUMNS` ("hand", "arm", "elbow", "shoulder").
     rate_hz : float
         Sampling rate: ``t = arange(T_i) / rate_hz`` seconds for each interaction.
+    max_gap_s : float
+        Rows with NaN/inf in the selected human columns or the robot columns (a tracker
+        that lost the joint) are filled by linear interpolation between the rows around
+        each run (held at either end of an interaction) when the run lasts at most this
+        long; a :class:`GapWarning` says how many. A longer run raises ``ValueError``
+        naming it. 0: refuse any.
 
     Returns
     -------
@@ -200,7 +238,7 @@ def load_interactions(path, columns=slice(6, 9), rate_hz: float = 100.0) -> Inte
         Naming the file and the problem: not an npz, pickled objects, a missing key,
         a non-numeric or non-2-D array, offsets that do not start at 0, end at N or
         increase, lengths that disagree, an interaction shorter than ``MIN_SAMPLES``,
-        NaN/inf (with the interaction and its rows), a bad split value or an
+        NaN/inf runs longer than ``max_gap_s`` (with the interaction and its rows), a bad split value or an
         ``active_end`` outside its interaction.
     """
     path = Path(path)
@@ -208,6 +246,10 @@ def load_interactions(path, columns=slice(6, 9), rate_hz: float = 100.0) -> Inte
     rate = float(rate_hz)
     if not np.isfinite(rate) or rate <= 0:
         raise ValueError(f"{where}: rate_hz must be positive, got {rate_hz!r}")
+    gap = float(max_gap_s)
+    if not np.isfinite(gap) or gap < 0:
+        raise ValueError(f"{where}: max_gap_s must be >= 0, got {max_gap_s!r}")
+    max_run = int(np.floor(gap * rate + 1e-9))
     if not path.is_file():
         raise FileNotFoundError(f"{where}: no such file")
     contents = _read_npz(path, where)
@@ -258,23 +300,45 @@ def load_interactions(path, columns=slice(6, 9), rate_hz: float = 100.0) -> Inte
             raise ValueError(f"{where}: active_end[{i}] = {int(active_end[i])} is outside interaction {i} "
                              f"({int(steps[i])} samples)")
     idx = _column_indices(columns, human.shape[1], where)
-    for key, a in (("human", human), ("robot", robot)):
-        if a is None:
+    parts = {"human": human[:, idx], "robot": robot}
+    filled: dict[str, list] = {"human": [], "robot": []}
+    for key, a in parts.items():
+        if a is None or not _nan_rows(a.astype(float, copy=False)).size:
             continue
-        rows = _nan_rows(a.astype(float, copy=False))
-        if rows.size:
-            r = int(rows[0])
-            i = int(np.searchsorted(offsets, r, side="right") - 1)
-            bad_rows = rows[(rows >= offsets[i]) & (rows < offsets[i + 1])] - offsets[i]
-            raise ValueError(f"{where}: '{key}' has NaN/inf in interaction {i} at rows "
-                             f"{int(bad_rows[0])}..{int(bad_rows[-1])} ({rows.size} bad row(s) in the file)")
+        pieces = []
+        for i in range(m):
+            lo, hi = int(offsets[i]), int(offsets[i + 1])
+            try:
+                piece, runs = _fill_gaps(a[lo:hi].astype(float), max_run)
+            except ValueError as e:
+                b, e_, everywhere = e.args[0]
+                if everywhere:
+                    raise ValueError(f"{where}: '{key}' has NaN/inf in every row of interaction {i} "
+                                     f"({e_} rows): nothing to fill from") from None
+                raise ValueError(f"{where}: '{key}' has NaN/inf in interaction {i} at rows {b}..{e_ - 1} "
+                                 f"({(e_ - b) / rate:.3g} s at {rate:g} Hz; at most max_gap_s = {gap:g} s is filled "
+                                 f"by interpolation): fill or cut them, or allow a longer gap") from None
+            pieces.append(piece)
+            filled[key] += [(i, b, e_) for b, e_ in runs]
+        parts[key] = np.concatenate(pieces)
+    runs = filled["human"] + filled["robot"]
+    if runs:
+        import warnings
+
+        longest = max(e - b for _, b, e in runs)
+        where_filled = sorted({i for i, _, _ in runs})
+        warnings.warn(f"{where}: filled {len(runs)} run(s) of NaN/inf samples by linear interpolation (longest "
+                      f"{longest} row(s), {longest / rate:.3g} s) in interaction(s) {where_filled[:10]}"
+                      f"{' ...' if len(where_filled) > 10 else ''}: human {len(filled['human'])}, robot "
+                      f"{len(filled['robot'])}", GapWarning, stacklevel=2)
+    human_sel, robot_all = parts["human"], parts["robot"]
     stem = path.stem
     demos = []
     for i in range(m):
         a, b = int(offsets[i]), int(offsets[i + 1])
         name = f"{stem}:{i:03d}" + (f":{split[i]}" if split is not None else "")
-        demos.append(Demonstration(t=np.arange(b - a) / rate, human=human[a:b, idx],
-                                   robot=None if robot is None else robot[a:b],
+        demos.append(Demonstration(t=np.arange(b - a) / rate, human=human_sel[a:b],
+                                   robot=None if robot_all is None else robot_all[a:b],
                                    task=None if task is None else str(task[i]), name=name))
     return Interactions(demos, path=path, split=[None] * m if split is None else [str(s) for s in split],
                         active_end=[None] * m if active_end is None else [int(e) for e in active_end],

@@ -88,6 +88,8 @@ class InteractionSettings:
     n_steps: int = 100
     #: Sampling rate assumed for the file (the source does not state it).
     rate_hz: float = 100.0
+    #: Longest run of missing samples (NaN/inf) filled by interpolation, in seconds (``load_interactions``).
+    max_gap_s: float = 0.5
     #: Units of the file's robot columns, for the response tables ("rad": the YuMi's joint angles;
     #: "m" for a second person's arm in metres).
     robot_units: str = "rad"
@@ -132,7 +134,8 @@ class InteractionContext:
 
     @classmethod
     def of(cls, settings: InteractionSettings) -> "InteractionContext":
-        demos = load_interactions(settings.data, columns=column_selection(settings.columns), rate_hz=settings.rate_hz)
+        demos = load_interactions(settings.data, columns=column_selection(settings.columns), rate_hz=settings.rate_hz,
+                                  max_gap_s=settings.max_gap_s)
         return cls.from_splits(demos.train, demos.test, settings)
 
     @classmethod

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from drake_skills.data.interaction import COLUMNS, load_interactions
+from drake_skills.data.interaction import COLUMNS, GapWarning, load_interactions
 from shared_data import require
 
 
@@ -92,8 +92,13 @@ def _bad(tmp_path):
     case("active_end_outside", r"active_end\[1\] = 99 is outside interaction 1 \(21 samples\)",
          active_end=np.array([5, 99, 5]))
     nan = a["human"].copy()
-    nan[25:27, 7] = np.nan
-    case("nan", r"'human' has NaN/inf in interaction 1 at rows 5\.\.6", human=nan)
+    nan[25:26 + 50, 7] = np.nan   # interaction 1 is rows 20..40: NaN from its row 5 to its end and on into 2
+    case("nan", r"'human' has NaN/inf in every row of interaction 2 \(22 rows\)", human=nan)
+    gap = np.repeat(a["human"][:1], 200, axis=0)   # one long interaction: 0.6 s of NaN in the middle
+    gap[50:110, 6] = np.inf
+    case("long_gap", r"'human' has NaN/inf in interaction 0 at rows 50\.\.109 \(0\.6 s at 100 Hz; at most "
+                     r"max_gap_s = 0\.5 s is filled", human=gap, offsets=np.array([0, 200]), robot=None, task=None,
+         split=None, active_end=None)
     case("human_1d", r"'human' must be a 2-D numeric array", human=a["human"][:, 0])
     return cases
 
@@ -123,3 +128,36 @@ def test_columns_out_of_range_not_an_npz_and_pickles_are_rejected(tmp_path):
         load_interactions(_write(tmp_path / "obj.npz", **a))
     with pytest.raises(FileNotFoundError, match="nope.npz"):
         load_interactions(tmp_path / "nope.npz")
+
+
+def test_short_runs_of_missing_samples_are_filled_by_interpolation_with_a_warning(tmp_path):
+    """A tracker that lost the joint: NaN/inf runs up to max_gap_s (0.5 s) in the selected human columns or the robot
+    columns are interpolated linearly (held at an interaction's ends) and a GapWarning counts them; NaN in a column
+    not selected is ignored; max_gap_s=0 refuses any, a negative one is an error."""
+    a = _arrays()
+    clean = load_interactions(_write(tmp_path / "clean.npz", **a))
+    human, robot = a["human"].copy(), a["robot"].copy()
+    human[25:27, 7] = np.nan          # interaction 1, rows 5-6, a hand column
+    human[20, 8] = np.inf             # interaction 1, its first row: held from row 1
+    human[3, 0] = np.nan              # interaction 0, a shoulder column: not selected
+    robot[45, 2] = np.nan             # interaction 2, row 4
+    path = _write(tmp_path / "gaps.npz", **dict(a, human=human, robot=robot))
+    with pytest.warns(GapWarning, match=r"gaps\.npz.*filled 3 run\(s\) of NaN/inf samples by linear interpolation "
+                                        r"\(longest 2 row\(s\), 0\.02 s\) in interaction\(s\) \[1, 2\]: human 2, robot 1"):
+        demos = load_interactions(path)
+    d = demos[1].human
+    for r in (5, 6):
+        expected = a["human"][24, 6:9] + (r - 4) / 3 * (a["human"][27, 6:9] - a["human"][24, 6:9])
+        np.testing.assert_allclose(d[r, 1], expected[1], rtol=1e-12)
+    assert d[0, 2] == a["human"][21, 8]
+    np.testing.assert_allclose(demos[2].robot[4], 0.5 * (a["robot"][44] + a["robot"][46]), rtol=1e-12)
+    np.testing.assert_array_equal(demos[0].human, clean[0].human)   # the unselected NaN changed nothing
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_interactions(_write(tmp_path / "shoulder.npz", **dict(a, human=np.where(
+            np.arange(9) == 0, np.nan, a["human"]))))   # NaN only in the shoulder: silent
+    with pytest.raises(ValueError, match=r"gaps\.npz.*'human' has NaN/inf in interaction 1 at rows 0\.\.0 \(0\.01 s"):
+        load_interactions(path, max_gap_s=0)
+    with pytest.raises(ValueError, match=r"max_gap_s must be >= 0, got -1"):
+        load_interactions(path, max_gap_s=-1)
