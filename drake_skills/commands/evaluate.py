@@ -73,8 +73,8 @@ def register(sub) -> None:
                         f"or under ${SHARED_ENV}/data)")
     q.add_argument("--columns", default="hand", metavar="SEL",
                    help="human columns: the hand/wrist (6:9 of the buetepage_hr layout, default), the whole arm "
-                        "(arm: shoulder, elbow, hand, 0:9), elbow, shoulder, or START:STOP (e.g. 0:3 for a file "
-                        "whose human array holds a wrist only)")
+                        "(arm: shoulder, elbow, hand, 0:9), elbow, shoulder, or START:STOP (e.g. 0:3); 'hand' of a file "
+                        "whose human array holds 3 columns, a wrist only, is those 3")
     q.add_argument("--orders", type=int, default=None,
                    help="random orders of the training interactions (default 20, --quick: 2)")
     q.add_argument("--teaching", choices=("random", "row"), default="random",

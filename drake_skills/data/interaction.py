@@ -125,9 +125,12 @@ def column_selection(text: str, name: str = "columns"):
 
 
 def _column_indices(columns, n_columns: int, where: str) -> np.ndarray:
+    label = columns
     if isinstance(columns, str):
         if columns not in COLUMNS:
             raise ValueError(f"{where}: unknown column selection {columns!r}; named ones are {sorted(COLUMNS)}")
+        if columns in ("hand", "wrist") and n_columns == 3:  # a file that holds a wrist only: that is the hand
+            return np.arange(3)
         columns = COLUMNS[columns]
     if isinstance(columns, slice):
         idx = np.arange(n_columns)[columns]
@@ -143,7 +146,7 @@ def _column_indices(columns, n_columns: int, where: str) -> np.ndarray:
         if bad.size:
             raise ValueError(f"{where}: columns {bad.tolist()} out of range: human has {n_columns} columns")
     if idx.size == 0:
-        raise ValueError(f"{where}: the column selection {columns!r} picks none of the {n_columns} human columns"
+        raise ValueError(f"{where}: the column selection {label!r} picks none of the {n_columns} human columns"
                          f" (the named selections are those of the buetepage_hr layout, 9 columns: shoulder, elbow, "
                          f"hand; give the columns as START:STOP, e.g. 0:{n_columns} for all)")
     if len(set(idx.tolist())) != idx.size:
@@ -200,7 +203,7 @@ def _fill_gaps(a: np.ndarray, max_run: int) -> tuple[np.ndarray, list[tuple[int,
     return out, runs
 
 
-def load_interactions(path, columns=slice(6, 9), rate_hz: float = 100.0, *,
+def load_interactions(path, columns="hand", rate_hz: float = 100.0, *,
                       max_gap_s: float = MAX_GAP_S) -> Interactions:
     """Read the interactions of a file in the layout above, one :class:`Demonstration` each.
 
@@ -210,8 +213,10 @@ def load_interactions(path, columns=slice(6, 9), rate_hz: float = 100.0, *,
         The ``.npz`` file (e.g. ``../shared/data/buetepage_hr.npz``); read in place.
     columns : slice, sequence of int, or str
         Which columns of ``human`` the demonstrations hold: the hand by default
-        (``slice(6, 9)``), ``slice(0, 9)`` for the whole arm; or a name from
-        :data:`COLUMNS` ("hand", "arm", "elbow", "shoulder").
+        ("hand": ``slice(6, 9)``), ``slice(0, 9)`` for the whole arm; or a name from
+        :data:`COLUMNS` ("hand", "arm", "elbow", "shoulder"). The names are those of the
+        buetepage_hr layout; "hand" (or "wrist") of a file whose ``human`` has 3 columns is
+        those 3 columns.
     rate_hz : float
         Sampling rate: ``t = arange(T_i) / rate_hz`` seconds for each interaction.
     max_gap_s : float

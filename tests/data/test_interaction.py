@@ -161,3 +161,16 @@ def test_short_runs_of_missing_samples_are_filled_by_interpolation_with_a_warnin
         load_interactions(path, max_gap_s=0)
     with pytest.raises(ValueError, match=r"max_gap_s must be >= 0, got -1"):
         load_interactions(path, max_gap_s=-1)
+
+
+def test_the_hand_of_a_file_that_holds_a_wrist_only_is_its_three_columns(tmp_path):
+    """The default selection ("hand", columns 6:9 of the buetepage_hr layout) on a file whose human array has 3
+    columns takes those 3; another named selection there is an error naming the file."""
+    a = _arrays()
+    a["human"] = a["human"][:, 6:9].copy()
+    path = _write(tmp_path / "wrist.npz", **a)
+    demos = load_interactions(path)
+    np.testing.assert_array_equal(demos[1].human, a["human"][20:41])
+    np.testing.assert_array_equal(load_interactions(path, columns="wrist")[0].human, demos[0].human)
+    with pytest.raises(ValueError, match=r"wrist\.npz.*'elbow' picks none of the 3 human columns"):
+        load_interactions(path, columns="elbow")

@@ -106,17 +106,20 @@ def test_task_mean_baseline_is_the_mean_of_the_true_tasks_training_robot_traject
     assert np.array_equal(done, np.isfinite(trial.err_task_mean))
 
 
-def test_a_file_holding_only_a_wrist_is_read_with_explicit_columns_and_the_named_ones_say_how(tmp_path):
-    """A file whose ``human`` array holds the wrist alone (3 columns, as another tracker's export would): the
-    named selection "hand" (6:9 of the buetepage_hr layout) is refused with the START:STOP form to use, and
-    "0:3" reads exactly the demonstrations the 9-column file gives with "hand"."""
+def test_a_file_holding_only_a_wrist_is_read_as_the_hand_or_with_explicit_columns(tmp_path):
+    """A file whose ``human`` array holds the wrist alone (3 columns, as another tracker's export would): "0:3",
+    and the default "hand" (6:9 of the buetepage_hr layout, which on 3 columns means those 3), read exactly the
+    demonstrations the 9-column file gives with "hand"; another named selection is refused with the START:STOP
+    form to use."""
     with np.load(require(), allow_pickle=False) as z:
         arrays = {k: z[k] for k in z.files}
     arrays["human"] = arrays["human"][:, 6:9]
     wrist = tmp_path / "wrist_only.npz"
     np.savez(wrist, **arrays)
-    with pytest.raises(ValueError, match=r"picks none of the 3 human columns .* e.g. 0:3 for all"):
-        load_interactions(wrist, columns=column_selection("hand"))
+    with pytest.raises(ValueError, match=r"'elbow' picks none of the 3 human columns .* e.g. 0:3 for all"):
+        load_interactions(wrist, columns=column_selection("elbow"))
+    for x, y in zip(load_interactions(wrist, columns=column_selection("hand")), load_interactions(require())):
+        np.testing.assert_array_equal(x.human, y.human)
     a, b = load_interactions(wrist, columns=column_selection("0:3")), load_interactions(require())
     assert len(a) == len(b) == 41 and a.split == b.split
     for x, y in zip(a, b):
