@@ -34,9 +34,9 @@ def register(sub) -> None:
                     "bounding box of the training split's human columns. Then: `drake-skills learn OUT/train` "
                     "and `drake-skills recognize out/learn/library.npz OUT/test`.")
     q.add_argument("data", type=Path, metavar="NPZ", help="the data set file, e.g. ../shared/data/buetepage_hr.npz")
-    q.add_argument("--columns", default="6:9", metavar="START:STOP",
-                   help="columns of the human array to use (default 6:9, the hand of buetepage_hr), or a name: "
-                        "hand, arm, elbow, shoulder")
+    q.add_argument("--columns", default="hand", metavar="START:STOP",
+                   help="columns of the human array to use: START:STOP or a name (hand: 6:9 of the buetepage_hr "
+                        "layout, the default, or all 3 of a file whose human array holds 3; arm, elbow, shoulder)")
     q.add_argument("--rate", type=float, default=RATE_HZ, help=f"sampling rate in Hz (default {RATE_HZ:g})")
     q.add_argument("--max-gap", type=float, default=0.5, metavar="S",
                    help="fill runs of missing samples (NaN/inf) up to S seconds by linear interpolation, with a "
