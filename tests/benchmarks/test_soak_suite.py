@@ -40,3 +40,23 @@ def test_the_soak_goes_on_past_a_refused_demonstration_and_checks_it_left_the_li
     assert out["refused"] > 0 and out["refused"] <= out["kinds"]["short"]
     assert out["violations"] == []
     assert out["library"].n_seen == 400 - out["refused"]
+
+
+def test_a_refused_update_that_changed_the_library_is_a_violation(monkeypatch):
+    """The refusal check can fail: an update that raises StillMotionError after adding to the history is reported."""
+    from drake_skills.library.incremental import SkillLibrary
+    from drake_skills.library.views import StillMotionError
+
+    real = SkillLibrary.partial_fit
+
+    def leaky(self, demo, **kw):
+        if self.n_seen == 50:
+            self._history.append({"event": "leak"})
+            raise StillMotionError("refused after all")
+        return real(self, demo, **kw)
+
+    monkeypatch.setattr(SkillLibrary, "partial_fit", leaky)
+    out = soak.soak(60, 3)
+    messages = [m for _, m in out["violations"]]
+    assert any("a refused update changed (n_seen, K, history)" in m for m in messages), messages
+    assert any("demonstration was refused: refused after all" in m for m in messages), messages
