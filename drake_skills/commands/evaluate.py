@@ -86,8 +86,9 @@ def register(sub) -> None:
     q.add_argument("--rate", type=float, default=100.0,
                    help="sampling rate of the file in Hz (not stated by the source; default 100)")
     q.add_argument("--max-gap", type=float, default=0.5, metavar="S",
-                   help="fill runs of missing samples (NaN/inf: a tracker that lost the joint) up to S seconds by "
-                        "linear interpolation, with a warning; longer ones are an error (default 0.5; 0: refuse any)")
+                   help="fill runs of missing samples (NaN/inf: a tracker that lost the joint) of up to S seconds "
+                        "(lost samples / --rate) by linear interpolation, with a warning; longer ones are an error "
+                        "(default 0.5; 0: refuse any)")
     q.add_argument("--loo-orders", type=int, default=None,
                    help="orders per held-out interaction of the leave-one-out table (ipromps' protocol over every "
                         "interaction of the file, cut at a share of its samples; default 3, --quick: 1; 0 skips it)")

@@ -39,8 +39,8 @@ def register(sub) -> None:
                         "layout, the default, or all 3 of a file whose human array holds 3; arm, elbow, shoulder)")
     q.add_argument("--rate", type=float, default=RATE_HZ, help=f"sampling rate in Hz (default {RATE_HZ:g})")
     q.add_argument("--max-gap", type=float, default=0.5, metavar="S",
-                   help="fill runs of missing samples (NaN/inf) up to S seconds by linear interpolation, with a "
-                        "warning; longer ones are an error (default 0.5; 0: refuse any)")
+                   help="fill runs of missing samples (NaN/inf) of up to S seconds (lost samples / --rate) by linear "
+                        "interpolation, with a warning; longer ones are an error (default 0.5; 0: refuse any)")
     q.add_argument("--csv", action="store_true", help="write CSV files instead of npz")
     add_out(q, "import", "the demonstration files")
     q.set_defaults(func=run_interactions)

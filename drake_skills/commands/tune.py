@@ -27,8 +27,9 @@ def register(sub) -> None:
                    help="for an interactions file: the human columns, a name (hand: 6:9 of the buetepage_hr "
                         "layout, default; arm, elbow, shoulder) or START:STOP")
     p.add_argument("--max-gap", type=float, default=0.5, metavar="S",
-                   help="for an interactions file: fill runs of missing samples (NaN/inf) up to S seconds by "
-                        "linear interpolation, with a warning (default 0.5; 0: refuse any)")
+                   help="for an interactions file: fill runs of missing samples (NaN/inf) of up to S seconds "
+                        "(lost samples / 100 Hz: tune reads the file at 100 Hz) by linear interpolation, with a "
+                        "warning (default 0.5; 0: refuse any)")
     p.add_argument("--trials", type=int, default=64, help="settings tried (default 64; trial 0 = the base config)")
     p.add_argument("--folds", type=int, default=4, help="cross-validation folds (default 4)")
     p.add_argument("--orders", type=int, default=2, help="presentation orders per fold (default 2)")

@@ -131,6 +131,9 @@ def _column_indices(columns, n_columns: int, where: str) -> np.ndarray:
             raise ValueError(f"{where}: unknown column selection {columns!r}; named ones are {sorted(COLUMNS)}")
         if columns in ("hand", "wrist") and n_columns == 3:  # a file that holds a wrist only: that is the hand
             return np.arange(3)
+        if n_columns == 3:  # the other body parts are not in a wrist-only file (shoulder's 0:3 would be the wrist)
+            raise ValueError(f"{where}: the column selection {columns!r} picks none of the 3 human columns (a file "
+                             f"of 3 columns holds a wrist: 'hand', or give the columns as START:STOP, e.g. 0:3)")
         columns = COLUMNS[columns]
     if isinstance(columns, slice):
         idx = np.arange(n_columns)[columns]
@@ -182,8 +185,8 @@ class GapWarning(UserWarning):
 
 
 def _fill_gaps(a: np.ndarray, max_run: int) -> tuple[np.ndarray, list[tuple[int, int]]]:
-    """``a`` (T, D) with every run of rows holding NaN/inf filled: linearly between the rows around it, or by the
-    nearest valid row at either end. Returns the filled copy and the runs (start, stop) filled; raises
+    """``a`` (T, D) with every lost (NaN/inf) entry filled, column by column: linearly between the valid entries
+    around it, or by the nearest valid one at either end; the runs are of rows holding any lost entry. Returns the filled copy and the runs (start, stop) filled; raises
     ``ValueError`` (no message: the caller names the place) if a run is longer than ``max_run`` rows or no row
     is valid."""
     bad = ~np.isfinite(a).all(axis=1)
@@ -196,10 +199,13 @@ def _fill_gaps(a: np.ndarray, max_run: int) -> tuple[np.ndarray, list[tuple[int,
     for b, e in runs:
         if e - b > max_run:
             raise ValueError((b, e, False))
-    good = np.flatnonzero(~bad)
     out = np.array(a, dtype=float)
-    for d in range(a.shape[1]):
-        out[bad, d] = np.interp(np.flatnonzero(bad), good, out[good, d])   # np.interp holds the ends
+    for d in range(a.shape[1]):   # each column over its own lost entries: a row's valid readings stay
+        lost = ~np.isfinite(out[:, d])
+        if lost.any():
+            if lost.all():
+                raise ValueError((0, len(a), True))
+            out[lost, d] = np.interp(np.flatnonzero(lost), np.flatnonzero(~lost), out[~lost, d])  # ends held
     return out, runs
 
 

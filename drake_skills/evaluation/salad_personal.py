@@ -245,8 +245,9 @@ def commits_table(s: SaladSettings, personal: list[PersonalTrial]) -> tuple[Tabl
         m = np.ones(len(tasks), bool) if task == "all" else tasks == task
         c = m & np.isfinite(share)
         n, nc = int(m.sum()), int(c.sum())
-        row = [task, n, nc / max(n, 1), float(np.sum(first[c] == CORRECT)) / max(nc, 1),
-               float(np.sum(first[c] == WRONG)) / max(nc, 1), _nanstat(share[c], np.mean),
+        nan = float("nan")
+        row = [task, n, nc / n if n else nan, float(np.sum(first[c] == CORRECT)) / nc if nc else nan,
+               float(np.sum(first[c] == WRONG)) / nc if nc else nan, _nanstat(share[c], np.mean),
                _nanstat(share[c], np.median), *(fractions_of(executed[m]) if n else [float("nan")] * 3)]
         rows.append(row)
         summary[task] = dict(zip(("motions", "committed", "first_commit_correct", "first_commit_wrong",

@@ -150,7 +150,11 @@ def test_short_runs_of_missing_samples_are_filled_by_interpolation_with_a_warnin
         expected = a["human"][24, 6:9] + (r - 4) / 3 * (a["human"][27, 6:9] - a["human"][24, 6:9])
         np.testing.assert_allclose(d[r, 1], expected[1], rtol=1e-12)
     assert d[0, 2] == a["human"][21, 8]
-    np.testing.assert_allclose(demos[2].robot[4], 0.5 * (a["robot"][44] + a["robot"][46]), rtol=1e-12)
+    np.testing.assert_allclose(demos[2].robot[4, 2], 0.5 * (a["robot"][44, 2] + a["robot"][46, 2]), rtol=1e-12)
+    # the valid readings of a partly lost row stay as they were
+    np.testing.assert_array_equal(d[5:7, [0, 2]], a["human"][25:27][:, [6, 8]])
+    np.testing.assert_array_equal(demos[2].robot[4, [0, 1, 3, 4, 5, 6]], a["robot"][45, [0, 1, 3, 4, 5, 6]])
+    np.testing.assert_array_equal(d[0, :2], a["human"][20, 6:8])
     np.testing.assert_array_equal(demos[0].human, clean[0].human)   # the unselected NaN changed nothing
     import warnings
     with warnings.catch_warnings():
@@ -172,5 +176,6 @@ def test_the_hand_of_a_file_that_holds_a_wrist_only_is_its_three_columns(tmp_pat
     demos = load_interactions(path)
     np.testing.assert_array_equal(demos[1].human, a["human"][20:41])
     np.testing.assert_array_equal(load_interactions(path, columns="wrist")[0].human, demos[0].human)
-    with pytest.raises(ValueError, match=r"wrist\.npz.*'elbow' picks none of the 3 human columns"):
-        load_interactions(path, columns="elbow")
+    for name in ("elbow", "shoulder", "arm"):
+        with pytest.raises(ValueError, match=rf"wrist\.npz.*'{name}' picks none of the 3 human columns"):
+            load_interactions(path, columns=name)
