@@ -20,6 +20,7 @@ assumed). Nothing is copied: the file is read from its path, with
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 from typing import Sequence
 
@@ -186,14 +187,13 @@ class GapWarning(UserWarning):
 
 def _fill_gaps(a: np.ndarray, max_run: int) -> tuple[np.ndarray, list[tuple[int, int]]]:
     """``a`` (T, D) with every lost (NaN/inf) entry filled, column by column: linearly between the valid entries
-    around it, or by the nearest valid one at either end; the runs are of rows holding any lost entry. Returns the filled copy and the runs (start, stop) filled; raises
-    ``ValueError`` (no message: the caller names the place) if a run is longer than ``max_run`` rows or no row
-    is valid."""
+    around it, or by the nearest valid one at either end; the runs are of rows holding any lost entry.
+
+    Returns the filled copy and the runs (start, stop) filled; raises ``ValueError`` (no message: the caller
+    names the place) if a run is longer than ``max_run`` rows or a column has no valid entry."""
     bad = ~np.isfinite(a).all(axis=1)
     if not bad.any():
         return a, []
-    if bad.all():
-        raise ValueError((0, len(a), True))
     edges = np.flatnonzero(np.diff(np.concatenate([[0], bad.astype(np.int8), [0]])))
     runs = [(int(b), int(e)) for b, e in zip(edges[::2], edges[1::2])]
     for b, e in runs:
@@ -334,8 +334,6 @@ def load_interactions(path, columns="hand", rate_hz: float = 100.0, *,
         parts[key] = np.concatenate(pieces)
     runs = filled["human"] + filled["robot"]
     if runs:
-        import warnings
-
         longest = max(e - b for _, b, e in runs)
         where_filled = sorted({i for i, _, _ in runs})
         warnings.warn(f"{where}: filled {len(runs)} run(s) of NaN/inf samples by linear interpolation (longest "

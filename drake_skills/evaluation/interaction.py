@@ -305,6 +305,18 @@ def replay_commits(library, demo: Demonstration, workspace: Workspace, rule=None
     return gating_step(state, t_end, y[-1], library, rule), False
 
 
+def replayed_commit(lab: LabeledLibrary, demo: Demonstration, workspace: Workspace) -> tuple[int, float, int, bool]:
+    """:func:`replay_commits` on one labeled motion: the first commit's outcome (UNKNOWN: none), the share of the
+    person's path done at it (:func:`commit_share`; NaN: none), the outcome of the skill executed at the end, and
+    whether the final answer came from the wrist resting."""
+    cfg = lab.library.config
+    g, at_rest = replay_commits(lab.library, demo, workspace)
+    if not g.commits:
+        return UNKNOWN, float("nan"), lab.outcome(g.component, demo.task, g.status), at_rest
+    share = commit_share(demo, workspace, cfg.resample_tolerance, g.commit_time, **cfg.walk_options())
+    return lab.outcome(g.commits[0], demo.task), share, lab.outcome(g.component, demo.task, g.status), at_rest
+
+
 def commit_share(demo: Demonstration, workspace: Workspace, tolerance: float, commit_time: float, *,
                  adapt_to_noise: bool = True, average_holds: bool = True) -> float:
     """Share of the person's whole path done at ``commit_time`` (s from the start), as the demo reports it.
@@ -375,11 +387,7 @@ def interaction_trial(ctx: InteractionContext, index: int) -> InteractionTrial:
             p_guess[i, k] = lab.outcome(best_guess(r), d.task)
             if r.status == "skill":
                 p_phase[i, k] = r.phase
-        g, rest[i] = replay_commits(lib, d, ctx.workspace)
-        if g.commits:
-            first[i] = lab.outcome(g.commits[0], d.task)
-            share[i] = commit_share(d, ctx.workspace, cfg.resample_tolerance, g.commit_time, **cfg.walk_options())
-        executed[i] = lab.outcome(g.component, d.task, g.status)
+        first[i], share[i], executed[i], rest[i] = replayed_commit(lab, d, ctx.workspace)
     labels = tuple(lab.label_of(c.id) for c in lib.components)
     return InteractionTrial(lib.n_components, outcomes, d2_min, d2_thr, errs[0], errs[1], errs[2], p_out, p_phase,
                             labels, first, share, executed, rest, p_guess)

@@ -26,6 +26,7 @@ import numpy as np
 from drake_skills.data.demonstration import Demonstration
 from drake_skills.data.workspace import Workspace
 from drake_skills.evaluation.common import Table, count_distribution, stream_rng
+from drake_skills.evaluation.interaction import replayed_commit
 from drake_skills.evaluation.labeled import (CORRECT, UNKNOWN, WRONG, LabeledLibrary, fractions_of,
                                              outcome_fractions)
 from drake_skills.evaluation.salad_data import SaladContext, SaladSettings
@@ -211,27 +212,13 @@ def personal_trial(ctx: PersonalContext, item: tuple[int, int]) -> PersonalTrial
         lab.teach(train[j], ws)
     grid = s.grid()
     rows = [response_errors(lab, d, ws, grid, ctx.flange_position) for d in test]
-    commits = [replayed_commit(lab, d, ws) for d in test] if split < s.commit_splits else []
+    commits = [replayed_commit(lab, d, ws)[:3] for d in test] if split < s.commit_splits else []
     first, share, executed = (np.array(x) for x in zip(*commits)) if commits else (np.zeros(0, int), np.zeros(0),
                                                                                   np.zeros(0, int))
     return PersonalTrial(data.subject.name, lab.library.n_components, tuple(d.task for d in test),
                          **{k: np.stack([getattr(r, k) for r in rows]) for k in ERROR_FIELDS},
                          first_commit=first.astype(int), commit_share=share.astype(float),
                          executed=executed.astype(int))
-
-
-def replayed_commit(lab: LabeledLibrary, demo: Demonstration, workspace: Workspace) -> tuple[int, float, int]:
-    """The gating's decision logic on one test motion (``evaluation.interaction.replay_commits``): the first
-    commit's outcome (UNKNOWN: none), the share of the person's path done at it (NaN: none), and the outcome of
-    the skill executed at the end."""
-    from drake_skills.evaluation.interaction import commit_share, replay_commits
-
-    cfg = lab.library.config
-    g, _ = replay_commits(lab.library, demo, workspace)
-    if not g.commits:
-        return UNKNOWN, float("nan"), lab.outcome(g.component, demo.task, g.status)
-    share = commit_share(demo, workspace, cfg.resample_tolerance, g.commit_time, **cfg.walk_options())
-    return lab.outcome(g.commits[0], demo.task), share, lab.outcome(g.component, demo.task, g.status)
 
 
 def commits_table(s: SaladSettings, personal: list[PersonalTrial]) -> tuple[Table, dict]:

@@ -92,9 +92,7 @@ class ComponentModel:
         so a split check costs no copy of K such matrices."""
         cached = self.__dict__.get("_sub_within")
         if cached is None or cached.shape[0] != h:
-            a, b = self.subclusters
-            F = np.column_stack([a.factor[:h], b.factor[:h]]) if b is not None else np.zeros((h, 0))
-            cached = F @ F.T
+            cached = _summed_scatter(*self.subclusters, h)
             cached.setflags(write=False)
             object.__setattr__(self, "_sub_within", cached)   # a cache of derived data; the dataclass stays frozen
         return cached
@@ -415,13 +413,26 @@ def within_share(a: Cluster, b: Cluster, metric: Metric, h: int) -> float:
     0. Identical means: 1.
     """
     dz = metric.whiten(a.mean[:h] - b.mean[:h])
-    between = float(dz @ dz)
-    if not between > 0.0:
+    if not float(dz @ dz) > 0.0:
         return 1.0
-    v = (dz / np.sqrt(between)) @ metric.inv_chol  # u' L^-1: the whitened direction in raw human weights
-    within = sum(float(np.sum((v @ cl.factor[:h]) ** 2)) for cl in (a, b))
-    between *= a.support * b.support / (a.support + b.support)
-    return within / (within + between)
+    return float(_shares(dz[None], _summed_scatter(a, b, h)[None], np.array([a.support]), np.array([b.support]),
+                         np.array([a.support + b.support]), metric)[0])
+
+
+def _summed_scatter(a: Cluster, b: Cluster | None, h: int) -> np.ndarray:
+    """(h, h): the human block of the scatters of ``a`` and ``b``, summed; 0 without ``b`` (nothing to split)."""
+    F = np.column_stack([a.factor[:h], b.factor[:h]]) if b is not None else np.zeros((h, 0))
+    return F @ F.T
+
+
+def _shares(dz: np.ndarray, within_scatter: np.ndarray, sa: np.ndarray, sb: np.ndarray, s: np.ndarray,
+            metric: Metric) -> np.ndarray:
+    """:func:`within_share` of n components at once: their halves' whitened mean differences ``dz`` (n, h,
+    nonzero), summed human scatters (n, h, h), the halves' supports and the components'."""
+    between = np.einsum("ij,ij->i", dz, dz)
+    v = (dz / np.sqrt(between)[:, None]) @ metric.inv_chol  # u' L^-1: the whitened direction in raw human weights
+    within = np.einsum("ri,rij,rj->r", v, within_scatter, v)
+    return within / (within + between * sa * sb / s)
 
 
 def _within_shares(work: "_Work", rows: np.ndarray, dz: np.ndarray, metric: Metric) -> list[float]:
@@ -430,11 +441,9 @@ def _within_shares(work: "_Work", rows: np.ndarray, dz: np.ndarray, metric: Metr
     if not rows.size:
         return []
     h = dz.shape[1]
-    between = np.einsum("ij,ij->i", dz, dz)
-    v = (dz / np.sqrt(between)[:, None]) @ metric.inv_chol
-    within = np.einsum("ri,rij,rj->r", v, np.stack([work.items[int(i)].sub_within(h) for i in rows]), v)
-    sa, sb = work.sub_support[rows, 0], work.sub_support[rows, 1]
-    return (within / (within + between * sa * sb / work.support[rows])).tolist()
+    scatter = np.stack([work.items[int(i)].sub_within(h) for i in rows])
+    return _shares(dz, scatter, work.sub_support[rows, 0], work.sub_support[rows, 1], work.support[rows],
+                   metric).tolist()
 
 
 def distance_shrink(inv_chol_old: np.ndarray | None, metric: Metric) -> float:
