@@ -149,6 +149,8 @@ class Reference:
                     for j in range(len(items)):  # a pair with a component seen once: only within its quantile
                         if min(support[i], support[j]) < 1.5 and d2m[j] > chi2_ppf(cfg.single_demo_quantile, h):
                             score[j] = np.inf
+                        if cfg.keep_single_demos_apart and max(support[i], support[j]) < 1.5:  # two seen once
+                            score[j] = np.inf
                 ids = [c.id for c in items]
                 for j in np.flatnonzero(score < 0.0):  # every pair below the threshold; of equal scores the lowest ids
                     key = (float(score[j]), min(ids[i], ids[j]), max(ids[i], ids[j]))
@@ -217,19 +219,22 @@ class Reference:
         cfg = self.cfg
         support = self._support()
         fits = ~self.rule.novel(logp, d2, dof)
+        answers = fits.copy()
         dofs = np.broadcast_to(dof, fits.shape)
         for k in range(len(fits)):  # a component seen once explains a motion only within its quantile (a
             # whole motion while the scale is more prior than data, a beginning always)
             if support[k] < 1.5 and cfg.novelty_test == "chi2" and cfg.single_demo_quantile < 1 \
                     and (self.scale.dof < cfg.prior_strength or shares is not None) \
                     and d2[k] > chi2_ppf(cfg.single_demo_quantile, dofs[k]):
-                fits[k] = False
+                answers[k] = False
         resp = _resp(logp, support)
-        post = _resp(logp, support, fits)
+        post = _resp(logp, support, fits if answers.any() else answers)  # beyond its quantile: still a rival
         ids = tuple(c.id for c in self.items)
         best = int(np.argmax(post))
-        if not fits.any():
+        if not answers.any():
             status, comp = "unknown", None
+        elif not answers[best]:
+            status, comp = "undecided", None
         elif post[best] >= 1.0 - cfg.decision_risk or \
                 post[self._same(best, post > 0, has_robot, shared_cov)].sum() >= 1.0 - cfg.decision_risk:
             status, comp = "skill", ids[best]

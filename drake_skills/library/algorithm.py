@@ -46,7 +46,8 @@ _LOG_2PI = np.log(2.0 * np.pi)
 UPDATED_RESPONSIBILITY = 1e-3
 #: A component below this support has been learned from a single demonstration ("young"). While the
 #: shared scale is more prior than data, a demonstration joins it, another component merges with it
-#: and, at run time, it explains a motion only within ``LibraryConfig.single_demo_quantile``.
+#: and, at run time, it explains a motion only within ``LibraryConfig.single_demo_quantile``; two such
+#: components do not merge at all then (``LibraryConfig.keep_single_demos_apart``).
 YOUNG_SUPPORT = 1.5
 #: The split's within-share test (``LibraryConfig.split_within_share``) holds once both sub-clusters have
 #: this support: a half of one demonstration has no spread, one of a few says little of it (and the halves'
@@ -619,6 +620,8 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
             if young_limit is not None:  # a pair with a component seen once merges only within its limit
                 young = (work.support < YOUNG_SUPPORT) | (work.support[i] < YOUNG_SUPPORT)
                 score = np.where(young & (d2m > young_limit), np.inf, score)
+                if config.keep_single_demos_apart and work.support[i] < YOUNG_SUPPORT:  # two seen once: never
+                    score = np.where(work.support < YOUNG_SUPPORT, np.inf, score)
             j = int(np.argmin(score))
             tied = np.flatnonzero(score == score[j])
             if tied.size > 1:

@@ -77,7 +77,10 @@ class RecognitionMixin:
             of its path this one covers (its record of beginnings; ``Recognition.blind``,
             :meth:`_decide`). While the shared scale is more prior than data, a component
             learned from one demonstration explains a motion only within
-            ``LibraryConfig.single_demo_quantile`` (0.9), not ``novelty_quantile``.
+            ``LibraryConfig.single_demo_quantile`` (0.9), not ``novelty_quantile``; between the
+            two it cannot be the answer but still takes its share of the posterior (it is not
+            ruled out), so a rival is answered only if it is ``1 - decision_risk`` probable
+            against it too.
         workspace : Workspace, optional
         normalized : bool
             ``human`` is already in the library's normalized units (Eq. 14 applied).
@@ -127,19 +130,24 @@ class RecognitionMixin:
         else:
             fits = np.zeros(len(comps), bool)
             fits[scored] = ~self._rule.novel(logp[scored], d2[scored], dof[scored])
+        # a component seen once, on a scale still more prior than data or (its phase searched) from a
+        # beginning, is the answer only well inside (``answers``); beyond that but within the novelty
+        # test it cannot be ruled out, so it still takes its share of the posterior (``fits``)
+        answers = fits.copy()
         q1 = single_demo_rule(self.config, self._scale, beginning=shares is not None)
-        if q1 is not None:  # a component seen once, on a scale still more prior than data or (its phase searched)
-            # from a beginning: only well inside
+        if q1 is not None:
             young = fits & (comps.support < YOUNG_SUPPORT)
             if young.any():
                 k = np.flatnonzero(young)
-                fits[k] = d2[k] <= chi2_ppf(q1, np.broadcast_to(dof, fits.shape)[k])
+                answers[k] = d2[k] <= chi2_ppf(q1, np.broadcast_to(dof, fits.shape)[k])
         resp = responsibilities(logp, comps.support)
-        post = responsibilities(logp, comps.support, fits)
+        post = responsibilities(logp, comps.support, fits if answers.any() else answers)
         ids = comps.ids
         best = int(np.argmax(post))
-        if not fits.any():
+        if not answers.any():
             status, comp = "unknown", None
+        elif not answers[best]:
+            status, comp = "undecided", None
         elif post[best] >= 1.0 - self.config.decision_risk or \
                 post[self._same_response(best, post > 0)].sum() >= 1.0 - self.config.decision_risk:
             status, comp = "skill", ids[best]

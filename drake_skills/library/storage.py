@@ -426,6 +426,7 @@ def _state_of(meta: dict, version: int, arrays, where: str) -> LibraryState:
         cfg_meta.setdefault("average_holds", False)  # optional key: a file written before it walked holds plainly
         cfg_meta.setdefault("single_demo_quantile", 1.0)  # optional key: a file written before the rule had none
         cfg_meta.setdefault("split_within_share", 1.0)  # optional key: a file written before it split on distance alone
+        cfg_meta.setdefault("keep_single_demos_apart", False)  # optional key: a file written before it merged them
         config = LibraryConfig.from_dict(cfg_meta)
         comps_meta = list(meta["components"])
         dim_h, dim_r = meta["dim_human"], meta["dim_robot"]

@@ -9,6 +9,8 @@ always. A component seen twice (support >= 1.5), or any component on a scale lea
 repeats judging a whole motion, is not affected. Hand-set libraries
 (``library_states``) put a motion at a chosen distance between the two thresholds.
 """
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.stats import chi2
@@ -93,10 +95,10 @@ def test_a_demonstration_between_the_thresholds_joins_only_a_component_seen_twic
     assert not u.merged
 
 
-def _pair_merges(q1, supports):
-    """Two components at a two-sample distance between chi2(Q1) and the merge quantile, far from a novel
-    demonstration whose step checks every pair: did they merge? (The library must end with 2 or 3.)"""
-    cfg = _config(q1)
+def _pair_merges(q1, supports, *, d2=None, apart=True):
+    """Two components at a two-sample distance ``d2`` (default: between chi2(Q1) and the merge quantile), far
+    from a novel demonstration whose step checks every pair: did they merge? (The library must end with 2 or 3.)"""
+    cfg = replace(_config(q1), keep_single_demos_apart=apart)
     far = synthetic_demo(0, np.random.default_rng(0), T=30)
     w = ls.encode(cfg, far)
     scale = ls.iso_scale(D, 1.0, dof=YOUNG_SCALE)
@@ -105,7 +107,7 @@ def _pair_merges(q1, supports):
     a[:H] += 40.0 * np.sqrt(S[0, 0]) * np.eye(H)[1]             # far from the demonstration that triggers the step
     b = a.copy()
     inflate = 1.0 / supports[0] + 1.0 / supports[1]               # two-sample distance under Sigma (1/s_a + 1/s_b)
-    b[:H] += np.sqrt(_between(cfg) * S[0, 0] * inflate) * np.eye(H)[0]
+    b[:H] += np.sqrt((_between(cfg) if d2 is None else d2) * S[0, 0] * inflate) * np.eye(H)[0]
     comps = [ls.component(k, m, support=s, age=3) for k, (m, s) in enumerate(zip((a, b), supports))]
     lib = ls.library(cfg, comps, dim_human=3, dim_robot=7, n_seen=4, scale=scale)
     u = lib.partial_fit(far)
@@ -114,9 +116,74 @@ def _pair_merges(q1, supports):
     return bool(u.merged)
 
 
-@pytest.mark.parametrize("q1, merged", [(Q1, False), (1.0, True)])
-def test_two_components_seen_once_merge_only_within_the_stricter_quantile(q1, merged):
-    assert _pair_merges(q1, (1.0, 1.0)) == merged
+@pytest.mark.parametrize("q1, apart, merged", [(Q1, False, False), (1.0, False, True), (1.0, True, True)])
+def test_two_components_seen_once_merge_only_within_the_stricter_quantile(q1, apart, merged):
+    """(With the rule off, ``single_demo_quantile`` 1, ``keep_single_demos_apart`` changes nothing.)"""
+    assert _pair_merges(q1, (1.0, 1.0), apart=apart) == merged
+
+
+@pytest.mark.parametrize("apart, merged", [(True, False), (False, True)])
+def test_two_components_seen_once_do_not_merge_at_all_while_the_scale_is_a_prior(apart, merged):
+    """Half the stricter quantile's distance: within every limit, yet kept apart (``keep_single_demos_apart``)."""
+    assert _pair_merges(Q1, (1.0, 1.0), d2=0.5 * chi2.ppf(Q1, H), apart=apart) == merged
+
+
+def test_a_component_seen_once_and_an_established_one_still_merge_within_the_stricter_quantile():
+    assert _pair_merges(Q1, (3.0, 1.0), d2=0.5 * chi2.ppf(Q1, H))
+
+
+def test_two_components_seen_once_merge_on_a_scale_learned_from_repeats():
+    """``keep_single_demos_apart`` holds only while the scale is more prior than data (pooled dof < 2)."""
+    cfg = _config(Q1)
+    far = synthetic_demo(0, np.random.default_rng(0), T=30)
+    w = ls.encode(cfg, far)
+    scale = ls.iso_scale(D, 1.0, dof=cfg.prior_strength + 1)
+    S = ls.library(cfg, [], dim_human=3, dim_robot=7, scale=scale).shared_covariance("expert")
+    a = w.copy()
+    a[:H] += 40.0 * np.sqrt(S[0, 0]) * np.eye(H)[1]
+    b = a.copy()
+    b[:H] += np.sqrt(0.5 * chi2.ppf(Q1, H) * S[0, 0] * 2.0) * np.eye(H)[0]
+    comps = [ls.component(k, m, support=1.0, age=3) for k, m in enumerate((a, b))]
+    lib = ls.library(cfg, comps, dim_human=3, dim_robot=7, n_seen=4, scale=scale)
+    u = lib.partial_fit(far)
+    assert u.created and u.merged and lib.n_components == 2
+
+
+def _two_young(d2a, d2b):
+    """Two components seen once (scale mostly prior) at whole-motion distances ``d2a``, ``d2b`` of a motion."""
+    cfg = _config(Q1)
+    demo = synthetic_demo(0, np.random.default_rng(0), T=30)
+    w = ls.encode(cfg, demo)
+    scale = ls.iso_scale(D, 1.0, dof=YOUNG_SCALE)
+    S = ls.library(cfg, [], dim_human=3, dim_robot=7, scale=scale).shared_covariance("expert")
+    means = []
+    for axis, d2 in ((0, d2a), (1, d2b)):
+        m = w.copy()
+        m[:H] += np.sqrt(d2 * S[0, 0] * 2.0) * np.eye(H)[axis]
+        m[H:] += 50.0 * axis * np.sqrt(S[H, H])   # the two answer differently
+        means.append(m)
+    comps = [ls.component(k, m, support=1.0, age=3) for k, m in enumerate(means)]
+    return ls.library(cfg, comps, dim_human=3, dim_robot=7, n_seen=3, scale=scale), demo
+
+
+def test_a_component_seen_once_beyond_its_stricter_quantile_still_competes_for_the_answer():
+    """B lies beyond chi2(Q1) (it cannot be the answer) but within the novelty quantile (it cannot be ruled
+    out): A, within chi2(Q1) and only e^1.5 more likely, is not answered -- "undecided", not A."""
+    q1 = chi2.ppf(Q1, H)
+    lib, demo = _two_young(q1 - 2.0, q1 + 1.0)
+    rec = lib.recognize(demo.human, observed_fraction=1.0)
+    np.testing.assert_allclose(rec.mahalanobis_sq, [q1 - 2.0, q1 + 1.0], rtol=1e-6)
+    assert rec.status == "undecided"
+    np.testing.assert_allclose(rec.posterior, [1 / (1 + np.exp(-1.5)), 1 / (1 + np.exp(1.5))], rtol=1e-6)
+
+
+def test_a_component_seen_once_far_beyond_its_stricter_quantile_leaves_the_answer_to_the_other():
+    """The same with B at d^2 = chi2(Q1) + 12: A is e^7 more likely, past 1 - decision_risk: A."""
+    q1 = chi2.ppf(Q1, H)
+    lib, demo = _two_young(q1 - 2.0, q1 + 12.0)
+    assert q1 + 12.0 < chi2.ppf(lib.config.novelty_quantile, H)
+    rec = lib.recognize(demo.human, observed_fraction=1.0)
+    assert rec.status == "skill" and rec.component == 0
 
 
 @pytest.mark.parametrize("q1, merged", [(Q1, False), (1.0, True)])
