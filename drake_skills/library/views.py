@@ -196,7 +196,10 @@ class Recognition:
     status: str = "unknown"
     #: Estimated fraction of each component's motion the observation covers, shape (K,).
     phases: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    #: p(k | motion) among the components that explain it (zero for the others).
+    #: p(k | motion) among the components that explain it (zero for the others). "Explain" is the
+    #: novelty test: a component seen once that lies beyond ``single_demo_quantile`` but within it keeps
+    #: its share here although it cannot be the answer (``RecognitionMixin._decide``); when no component
+    #: can be the answer all entries are zero.
     posterior: np.ndarray = field(default_factory=lambda: np.zeros(0))
     #: Ids of the components that could not be ruled out because they miss too many of their own
     #: demonstrations' beginnings at the share of their path this beginning covers, and would
