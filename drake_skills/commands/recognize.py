@@ -140,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
             strict = ", ".join(f"{chi2_ppf(q1, k):.1f} for {k} dof" for k in dofs)
             print(f"    and to a component learned from one demonstration ({', '.join(map(str, young))}) beyond "
                   f"{strict} (chi-square {q1} quantile, single_demo_quantile), while the library's scale is more "
-                  f"prior than data")
+                  f"prior than data; within the first limit it is not the answer but still a rival (undecided)")
     counts = _counts(rows)
     if counts:
         print("labeled files: " + ", ".join(f"{v} {k}" for k, v in counts.items()))

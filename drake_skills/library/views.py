@@ -215,7 +215,8 @@ class Recognition:
 
     @property
     def best(self) -> int | None:
-        """The most probable component among those that explain the motion (None if unknown)."""
+        """The most probable component among those that explain the motion (None if unknown); when "undecided",
+        possibly one seen once that is beyond ``single_demo_quantile`` and so cannot be the answer."""
         if self.status == "unknown" or not len(self.ids):
             return None
         return self.ids[int(np.argmax(self.posterior))]

@@ -231,3 +231,25 @@ def test_the_default_trusts_a_component_seen_once_only_within_its_0_9_quantile()
 def test_single_demo_quantile_outside_0_1_is_refused(bad):
     with pytest.raises(ValueError, match=r"single_demo_quantile must be in \(0, 1\] \(1: off\)"):
         LibraryConfig(single_demo_quantile=bad)
+
+
+def test_a_component_seen_once_beyond_its_stricter_quantile_is_not_answered_even_as_the_most_probable():
+    """B (seen once) just beyond chi2(Q1) is far more probable than A (support 1.6, near the novelty threshold),
+    but B cannot be the answer and A is not 99 % probable: "undecided", neither A nor B. (A cold review's case.)"""
+    cfg = _config(Q1)
+    demo = synthetic_demo(0, np.random.default_rng(0), T=30)
+    w = ls.encode(cfg, demo)
+    scale = ls.iso_scale(D, 1.0, dof=YOUNG_SCALE)
+    S = ls.library(cfg, [], dim_human=3, dim_robot=7, scale=scale).shared_covariance("expert")
+    q1, qn = chi2.ppf(Q1, H), chi2.ppf(cfg.novelty_quantile, H)
+    comps = []
+    for k, (d2, s) in enumerate(((qn - 0.05, 1.6), (q1 + 0.05, 1.0))):
+        m = w.copy()
+        m[:H] += np.sqrt(d2 * S[0, 0] * (1 + 1 / s)) * np.eye(H)[k]
+        m[H:] += 50.0 * k * np.sqrt(S[H, H])   # the two answer differently
+        comps.append(ls.component(k, m, support=s, age=3))
+    lib = ls.library(cfg, comps, dim_human=3, dim_robot=7, n_seen=4, scale=scale)
+    rec = lib.recognize(demo.human, observed_fraction=1.0)
+    assert rec.mahalanobis_sq[0] < qn and q1 < rec.mahalanobis_sq[1] < qn
+    assert rec.posterior[1] > 0.99
+    assert rec.status == "undecided" and rec.component is None
