@@ -253,3 +253,14 @@ def test_a_component_seen_once_beyond_its_stricter_quantile_is_not_answered_even
     assert rec.mahalanobis_sq[0] < qn and q1 < rec.mahalanobis_sq[1] < qn
     assert rec.posterior[1] > 0.99
     assert rec.status == "undecided" and rec.component is None
+
+
+def test_when_no_component_can_be_the_answer_the_posterior_is_all_zero():
+    """Both seen once, both beyond chi2(Q1) but within the novelty test: "unknown", and no share anywhere
+    (the rivals' shares are kept only while some component can be the answer)."""
+    q1 = chi2.ppf(Q1, H)
+    lib, demo = _two_young(q1 + 1.0, q1 + 2.0)
+    rec = lib.recognize(demo.human, observed_fraction=1.0)
+    assert (rec.mahalanobis_sq > q1).all() and (rec.mahalanobis_sq < chi2.ppf(lib.config.novelty_quantile, H)).all()
+    assert rec.status == "unknown"
+    np.testing.assert_array_equal(rec.posterior, [0.0, 0.0])
