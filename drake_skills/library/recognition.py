@@ -165,7 +165,8 @@ class RecognitionMixin:
                 mask &= ~self._same_response(best, mask)
             if mask.any():
                 status, comp, blind = "undecided", None, tuple(ids[i] for i in np.flatnonzero(mask))
-        return Recognition(comp, ids, resp, logp, d2, dof, status, phases, post, blind)
+        seen_once = tuple(ids[i] for i in np.flatnonzero(fits & ~answers)) if answers.any() else ()
+        return Recognition(comp, ids, resp, logp, d2, dof, status, phases, post, blind, seen_once)
 
     def _same_response(self, best: int, candidates: np.ndarray) -> np.ndarray:
         """Which candidates answer like component ``best`` (a mask, ``best`` included).
@@ -522,6 +523,11 @@ def _unknown_message(rec: Recognition) -> str:
     if rec.status == "undecided" and rec.blind:
         return (f"the motion's beginning fits skill {rec.best}, but skill(s) {', '.join(map(str, rec.blind))} cannot "
                 "be ruled out yet (they do not recognize their own beginnings this early): observe more")
+    if rec.status == "undecided" and rec.best in rec.seen_once:
+        p = rec.posterior[rec.ids.index(rec.best)]
+        return (f"the motion is closest to skill {rec.best} ({p:.2f}), learned from one demonstration, but lies "
+                "beyond the stricter limit for a skill seen once (single_demo_quantile): observe more, or "
+                "demonstrate that skill again")
     if rec.status == "undecided":
         top = np.argsort(rec.posterior)[::-1][:2]
         cands = ", ".join(f"{rec.ids[i]} ({rec.posterior[i]:.2f})" for i in top)

@@ -207,6 +207,11 @@ class Recognition:
     #: is "undecided" (empty for whole motions and beginnings of a given fraction; the record of
     #: beginnings: ``Cluster.tested`` / ``Cluster.missed``, ``RecognitionMixin._decide``).
     blind: tuple[int, ...] = ()
+    #: Ids of the components seen once that explain the motion (the novelty test) but lie beyond
+    #: ``single_demo_quantile`` while the library's scale is more prior than data: they keep their share
+    #: of ``posterior`` but cannot be the answer. The reason a motion whose most probable component is
+    #: one of them is "undecided" (``RecognitionMixin._decide``): demonstrate that skill again.
+    seen_once: tuple[int, ...] = ()
 
     @property
     def unknown(self) -> bool:

@@ -16,6 +16,7 @@ import pytest
 from scipy.stats import chi2
 
 from drake_skills import LibraryConfig
+from drake_skills.library.views import UnknownSkillError
 
 import library_states as ls
 from synthetic import synthetic_demo
@@ -173,8 +174,11 @@ def test_a_component_seen_once_beyond_its_stricter_quantile_still_competes_for_t
     lib, demo = _two_young(q1 - 2.0, q1 + 1.0)
     rec = lib.recognize(demo.human, observed_fraction=1.0)
     np.testing.assert_allclose(rec.mahalanobis_sq, [q1 - 2.0, q1 + 1.0], rtol=1e-6)
-    assert rec.status == "undecided"
+    assert rec.status == "undecided" and rec.seen_once == (1,) and rec.best == 0
     np.testing.assert_allclose(rec.posterior, [1 / (1 + np.exp(-1.5)), 1 / (1 + np.exp(1.5))], rtol=1e-6)
+    # the most probable (A) could answer: the message names both candidates, not "seen once"
+    with pytest.raises(UnknownSkillError, match=r"fits more than one skill and none clearly \(0 \(0\.82\), 1 "):
+        lib.predict_robot(demo.human, 1.0)
 
 
 def test_a_component_seen_once_far_beyond_its_stricter_quantile_leaves_the_answer_to_the_other():
@@ -253,6 +257,11 @@ def test_a_component_seen_once_beyond_its_stricter_quantile_is_not_answered_even
     assert rec.mahalanobis_sq[0] < qn and q1 < rec.mahalanobis_sq[1] < qn
     assert rec.posterior[1] > 0.99
     assert rec.status == "undecided" and rec.component is None
+    assert rec.best == 1 and rec.seen_once == (1,)
+    # and predict_robot says why: the closest skill was seen once, not "more than one skill fits"
+    with pytest.raises(UnknownSkillError, match=r"closest to skill 1 \(1\.00\), learned from one demonstration, "
+                                                 r"but lies beyond the stricter limit .*demonstrate that skill again"):
+        lib.predict_robot(demo.human, 1.0)
 
 
 def test_when_no_component_can_be_the_answer_the_posterior_is_all_zero():
@@ -262,5 +271,5 @@ def test_when_no_component_can_be_the_answer_the_posterior_is_all_zero():
     lib, demo = _two_young(q1 + 1.0, q1 + 2.0)
     rec = lib.recognize(demo.human, observed_fraction=1.0)
     assert (rec.mahalanobis_sq > q1).all() and (rec.mahalanobis_sq < chi2.ppf(lib.config.novelty_quantile, H)).all()
-    assert rec.status == "unknown"
+    assert rec.status == "unknown" and rec.seen_once == ()
     np.testing.assert_array_equal(rec.posterior, [0.0, 0.0])
