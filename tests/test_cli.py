@@ -798,3 +798,17 @@ def test_recognize_names_the_components_learned_from_one_demonstration_and_their
     H = lib.n_human
     assert (f"and to a component learned from one demonstration ({ids}) beyond {chi2.ppf(0.9, H):.1f} for {H} dof "
             f"(chi-square 0.9 quantile, single_demo_quantile)") in text, text
+
+
+def test_the_recognize_table_and_csv_say_why_a_motion_is_undecided():
+    from drake_skills.commands.recognize import format_csv, format_table
+
+    base = {"file": "a.npz", "path": "d/a.npz", "true task": "tomato", "component": None, "task": None,
+            "d2": 30.0, "dof": 35, "confidence": 1.0}
+    rows = [{**base, "decision": "undecided", "why": "seen once: 3"},
+            {**base, "file": "b.npz", "path": "d/b.npz", "decision": "unknown", "why": ""}]
+    lines = format_table(rows).splitlines()
+    assert "undecided (seen once: 3)" in lines[2] and lines[3].split()[2] == "unknown", lines  # header, rule
+    csv_lines = format_csv(rows).splitlines()
+    assert csv_lines[0].endswith(",why") and csv_lines[1].endswith(",seen once: 3") and csv_lines[2].endswith(","), \
+        csv_lines

@@ -21,7 +21,9 @@ def register(sub) -> None:
         "recognize", help="recognize the skill of human motions and predict the robot's response",
         description="Load a library and demonstration files (or folders of them, searched recursively) and "
                     "print a table: file, true task (the file's label, if any), decision (skill, undecided: "
-                    "more than one skill fits and none clearly, or unknown: no skill fits), the skill's task "
+                    "more than one skill fits and none clearly, with the reason: 'between a and b', or 'seen "
+                    "once: k' when the closest skill k was learned from one demonstration and the motion lies beyond "
+                    "its stricter limit; or unknown: no skill fits), the skill's task "
                     "name (from the library's .tasks.json written by `learn`) and component id, d2 (squared "
                     "Mahalanobis distance to the best or nearest component; above the novelty limit printed "
                     "under the table a motion is unknown) and the confidence (the best component's posterior among "
@@ -73,6 +75,7 @@ def run(args: argparse.Namespace) -> int:
     from drake_skills.data.demos import check_layout
     from drake_skills.library.labels import TaskVotes
     from drake_skills.library.novelty import chi2_ppf
+    from drake_skills.library.recognition import undecided_reason
 
     clear_reports(args.out, ("recognition.json", "recognition.csv", "predictions.npz"))
     if not 0 < args.fraction <= 1:
@@ -117,6 +120,7 @@ def run(args: argparse.Namespace) -> int:
         near = rec.ids.index(rec.best) if rec.best is not None else int(np.argmin(rec.mahalanobis_sq))
         comp = rec.component
         row = {"file": short_name(d.name, root), "path": d.name, "true task": d.task, "decision": rec.status,
+               "why": undecided_reason(rec),
                "component": comp, "task": votes.label_of(comp), "nearest": rec.ids[near],
                "d2": float(rec.mahalanobis_sq[near]), "dof": int(rec.dof if np.ndim(rec.dof) == 0 else rec.dof[near]),
                "confidence": rec.confidence}
@@ -206,7 +210,8 @@ def _counts(rows: list[dict]) -> dict:
 def _cells(r: dict) -> list[str]:
     skill = "-" if r["component"] is None else f"{r['task'] or '?'} ({r['component']})"
     conf = "" if r["decision"] == "unknown" else f"{r['confidence']:.2f}"
-    return [r["file"], r["true task"] or "-", r["decision"], skill, f"{r['d2']:.1f}", conf]
+    decision = f"{r['decision']} ({r['why']})" if r.get("why") else r["decision"]
+    return [r["file"], r["true task"] or "-", decision, skill, f"{r['d2']:.1f}", conf]
 
 
 def format_table(rows: list[dict]) -> str:
@@ -223,10 +228,10 @@ def format_table(rows: list[dict]) -> str:
 def format_csv(rows: list[dict]) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["file", "true_task", "decision", "task", "component", "d2", "dof", "confidence"])
+    w.writerow(["file", "true_task", "decision", "task", "component", "d2", "dof", "confidence", "why"])
     for r in rows:
         w.writerow([r["path"], r["true task"] or "", r["decision"], r["task"] or "",
                     "" if r["component"] is None else r["component"], f"{r['d2']:.6g}", r["dof"],
-                    f"{r['confidence']:.6g}"])
+                    f"{r['confidence']:.6g}", r.get("why", "")])
     return buf.getvalue()
 

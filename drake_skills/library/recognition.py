@@ -519,6 +519,24 @@ class _Path:
         return np.stack([np.interp(grid, self.s, self.vertices[:, d]) for d in range(self.vertices.shape[1])], axis=1)
 
 
+def undecided_reason(rec: Recognition) -> str:
+    """Why a recognition is "undecided", in a few words ("" for any other status).
+
+    "seen once: k": the most probable component ``k`` was learned from one demonstration and the
+    motion lies beyond its stricter limit (``Recognition.seen_once``); "blind: j, ...": the beginning
+    fits, but those components miss their own beginnings there (``Recognition.blind``); "between a
+    and b": the two most probable components, neither ``1 - decision_risk`` probable.
+    """
+    if rec.status != "undecided":
+        return ""
+    if rec.best in rec.seen_once:
+        return f"seen once: {rec.best}"
+    if rec.blind:
+        return "blind: " + ", ".join(map(str, rec.blind))
+    top = np.argsort(rec.posterior)[::-1][:2]
+    return "between " + " and ".join(str(rec.ids[i]) for i in top)
+
+
 def _unknown_message(rec: Recognition) -> str:
     if rec.status == "undecided" and rec.blind:
         return (f"the motion's beginning fits skill {rec.best}, but skill(s) {', '.join(map(str, rec.blind))} cannot "

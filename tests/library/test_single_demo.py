@@ -16,7 +16,8 @@ import pytest
 from scipy.stats import chi2
 
 from drake_skills import LibraryConfig
-from drake_skills.library.views import UnknownSkillError
+from drake_skills.library.recognition import undecided_reason
+from drake_skills.library.views import Recognition, UnknownSkillError
 
 import library_states as ls
 from synthetic import synthetic_demo
@@ -175,6 +176,7 @@ def test_a_component_seen_once_beyond_its_stricter_quantile_still_competes_for_t
     rec = lib.recognize(demo.human, observed_fraction=1.0)
     np.testing.assert_allclose(rec.mahalanobis_sq, [q1 - 2.0, q1 + 1.0], rtol=1e-6)
     assert rec.status == "undecided" and rec.seen_once == (1,) and rec.best == 0
+    assert undecided_reason(rec) == "between 0 and 1"
     np.testing.assert_allclose(rec.posterior, [1 / (1 + np.exp(-1.5)), 1 / (1 + np.exp(1.5))], rtol=1e-6)
     # the most probable (A) could answer: the message names both candidates, not "seen once"
     with pytest.raises(UnknownSkillError, match=r"fits more than one skill and none clearly \(0 \(0\.82\), 1 "):
@@ -257,7 +259,7 @@ def test_a_component_seen_once_beyond_its_stricter_quantile_is_not_answered_even
     assert rec.mahalanobis_sq[0] < qn and q1 < rec.mahalanobis_sq[1] < qn
     assert rec.posterior[1] > 0.99
     assert rec.status == "undecided" and rec.component is None
-    assert rec.best == 1 and rec.seen_once == (1,)
+    assert rec.best == 1 and rec.seen_once == (1,) and undecided_reason(rec) == "seen once: 1"
     # and predict_robot says why: the closest skill was seen once, not "more than one skill fits"
     with pytest.raises(UnknownSkillError, match=r"closest to skill 1 \(1\.00\), learned from one demonstration, "
                                                  r"but lies beyond the stricter limit .*demonstrate that skill again"):
@@ -273,3 +275,13 @@ def test_when_no_component_can_be_the_answer_the_posterior_is_all_zero():
     assert (rec.mahalanobis_sq > q1).all() and (rec.mahalanobis_sq < chi2.ppf(lib.config.novelty_quantile, H)).all()
     assert rec.status == "unknown" and rec.seen_once == ()
     np.testing.assert_array_equal(rec.posterior, [0.0, 0.0])
+
+
+def test_undecided_reason_names_the_components_a_blind_beginning_waits_for_and_is_empty_otherwise():
+    z = np.zeros(3)
+    post = np.array([0.0, 1.0, 0.0])
+    blind = Recognition(None, (4, 5, 6), post, z, z, 3, "undecided", z, post, (4, 6))
+    assert undecided_reason(blind) == "blind: 4, 6"
+    for status in ("skill", "unknown"):
+        assert undecided_reason(Recognition(5 if status == "skill" else None, (4, 5, 6), post, z, z, 3, status, z,
+                                            post, (), (5,))) == ""
