@@ -368,7 +368,8 @@ def test_the_pruning_bound_uses_the_largest_within_skill_variance(monkeypatch):
     pruned = lib.recognize(yn, normalized=True)
     assert full.status == pruned.status == "skill" and full.component == pruned.component == 0
     assert full.mahalanobis_sq[0] < 10.0
-    np.testing.assert_array_equal(pruned.log_likelihoods[0], full.log_likelihoods[0])
+    # the pruned path scores a subset of the rows: BLAS may sum them in another order (1e-16 relative seen)
+    np.testing.assert_allclose(pruned.log_likelihoods[0], full.log_likelihoods[0], rtol=1e-12, atol=0)
 
 
 def test_components_the_bound_rules_out_report_minus_inf_inf_zero_and_their_path_length_phase(monkeypatch):
