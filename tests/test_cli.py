@@ -189,6 +189,33 @@ def test_recognize_takes_wrist_only_recordings_as_help_says_only_the_human_part_
     assert "missing columns 'q4'" in capsys.readouterr().err
 
 
+def test_recognize_reads_a_motion_after_a_false_start_from_where_it_set_off_again_and_says_so(dataset, learned,
+                                                                                               tmp_path, capsys):
+    """A held-out motion with a false start before it (20 samples out 15 cm toward the robot and back): the
+    decision names the skill and the sample it was read from; the robot's answer is the one for the motion alone."""
+    d = load_demo(dataset / "held" / "bowl_03.npz")
+    fs = d.human[0] + np.sin(np.linspace(0.0, np.pi, 20))[:, None] * np.array([0.15, 0.0, 0.05])
+    human = np.vstack([fs, d.human[1:]])
+    robot = np.vstack([np.repeat(d.robot[:1], 20, axis=0), d.robot[1:]])
+    folder = tmp_path / "fs"
+    folder.mkdir()
+    shutil.copy(dataset / "held" / "calibration.npz", folder / "calibration.npz")
+    Demonstration(t=(d.t[1] - d.t[0]) * np.arange(len(human)), human=human, robot=robot,
+                  task="bowl").save(folder / "bowl_fs.npz")
+    Demonstration(t=d.t, human=d.human, robot=d.robot, task="bowl").save(folder / "bowl_clean.npz")
+    capsys.readouterr()
+    assert main(["recognize", str(learned / "library.npz"), str(folder), "--out", str(tmp_path / "rec")]) == 0
+    text = capsys.readouterr().out
+    row = next(line for line in text.splitlines() if line.startswith("bowl_fs.npz"))
+    assert "skill (read from sample 19: a false start before it)  bowl (" in row, row
+    rec = json.loads((tmp_path / "rec" / "recognition.json").read_text())
+    by = {Path(r["path"]).name: r for r in rec["files"]}
+    assert by["bowl_fs.npz"]["component"] == by["bowl_clean.npz"]["component"]
+    with np.load(tmp_path / "rec" / "predictions.npz", allow_pickle=False) as pred:
+        means = dict(zip((Path(f).name for f in pred["files"]), pred["robot_mean"]))
+    np.testing.assert_allclose(means["bowl_fs.npz"], means["bowl_clean.npz"], atol=1e-9)
+
+
 def test_recognize_writes_its_outputs_afresh_so_nothing_stale_is_left_after_an_unknown(dataset, learned, tmp_path):
     out = tmp_path / "rec"
     lib = str(learned / "library.npz")

@@ -23,7 +23,9 @@ def register(sub) -> None:
                     "print a table: file, true task (the file's label, if any), decision (skill, undecided: "
                     "more than one skill fits and none clearly, with the reason: 'between a and b', or 'seen "
                     "once: k' when the closest skill k was learned from one demonstration and the motion lies beyond "
-                    "its stricter limit; or unknown: no skill fits), the skill's task "
+                    "its stricter limit; or unknown: no skill fits; a motion unknown as a whole that set off more "
+                    "than once is read from where it last set off, and the decision says from which sample), the "
+                    "skill's task "
                     "name (from the library's .tasks.json written by `learn`) and component id, d2 (squared "
                     "Mahalanobis distance to the best or nearest component; above the novelty limit printed "
                     "under the table a motion is unknown) and the confidence (the best component's posterior among "
@@ -120,12 +122,13 @@ def run(args: argparse.Namespace) -> int:
         near = rec.ids.index(rec.best) if rec.best is not None else int(np.argmin(rec.mahalanobis_sq))
         comp = rec.component
         row = {"file": short_name(d.name, root), "path": d.name, "true task": d.task, "decision": rec.status,
-               "why": undecided_reason(rec),
+               "why": undecided_reason(rec) or ("" if rec.restart is None else
+                                                 f"read from sample {rec.restart}: a false start before it"),
                "component": comp, "task": votes.label_of(comp), "nearest": rec.ids[near],
                "d2": float(rec.mahalanobis_sq[near]), "dof": int(rec.dof if np.ndim(rec.dof) == 0 else rec.dof[near]),
                "confidence": rec.confidence}
         if comp is not None and lib.has_robot:
-            mean, cov = lib.predict_robot(human, args.fraction, workspace=ws, component=comp)
+            mean, cov = lib.predict_robot(human, args.fraction, workspace=ws, component=comp, restart=rec.restart)
             duration = lib.component(comp).duration
             preds.append((d.name, comp, np.linspace(0.0, duration, mean.shape[0]), mean, cov))
             if d.robot is not None and args.fraction == 1:

@@ -79,7 +79,8 @@ from drake_skills.library.views import (Component, DataWarning, Recognition, Sti
                                         UnknownSkillError, Update, WorkspaceWarning)
 from drake_skills.promp.basis import GaussianBasis, ridge_weights
 from drake_skills.promp.interaction import InteractionProMP
-from drake_skills.promp.preprocessing import arc_length, despiked, noise_level, resample_in_time, spike_samples
+from drake_skills.promp.preprocessing import (arc_length, despiked, noise_level, resample_in_time, restart_vertex,
+                                              spike_samples, vertex_path)
 
 #: Normalized motions (Eq. 14 and their path) a library keeps for queries about the same
 #: samples: the gating, the conditioner and ``predict_robot`` ask about one prefix each tick.
@@ -406,24 +407,44 @@ class SkillLibrary(RecognitionMixin, FileMixin):
                 human = ws.normalize(human, subtract_start=cfg.subtract_start)
             elif cfg.subtract_start:
                 human = human - human[0]
-        with np.errstate(over="ignore", invalid="ignore"):  # an overflowing path is refused just below
-            adapt = cfg.adapt_to_noise and cfg.resample_tolerance > 0
-            if adapt:
+        adapt = cfg.adapt_to_noise and cfg.resample_tolerance > 0
+        if adapt:
+            with np.errstate(over="ignore", invalid="ignore"):  # an overflowing path is refused in _walked
                 glitches = spike_samples(human, cfg.resample_tolerance)
-                if glitches.any():
-                    human = despiked(human, cfg.resample_tolerance, glitches=glitches)
-                    if glitches[0] and cfg.subtract_start:  # a glitch on the first sample would offset the
-                        human = human - human[0]            # whole motion (Eq. 14's start)
-            vertices, s = arc_length(human, cfg.resample_tolerance, glitches_removed=adapt, **cfg.walk_options())
+            if glitches.any():
+                human = despiked(human, cfg.resample_tolerance, glitches=glitches)
+                if glitches[0] and cfg.subtract_start:  # a glitch on the first sample would offset the
+                    human = human - human[0]            # whole motion (Eq. 14's start)
+        path = self._walked(np.array(human, dtype=float), where)  # a copy: the caller's array may change later
+        self._paths = ((key, path),) + self._paths[:PATH_MEMO - 1]  # one assignment: safe across threads
+        return path
+
+    def _walked(self, human: np.ndarray, where: str | None, offset: int = 0) -> "_Path":
+        """The path of normalized (and despiked) samples ``human`` (T, D): the walk and its checks."""
+        cfg = self.config
+        with np.errstate(over="ignore", invalid="ignore"):  # an overflowing path is refused just below
+            indices, vertices, s = vertex_path(human, cfg.resample_tolerance,
+                                               glitches_removed=cfg.adapt_to_noise and cfg.resample_tolerance > 0,
+                                               **cfg.walk_options())
         if not np.isfinite(s[-1]):
             raise ValueError(f"{where + ': ' if where else ''}human positions are too large: their path length "
                              f"overflows (largest |value| {np.abs(human).max():.3g}); check the units and the workspace")
         if not s[-1] > 0:
             raise StillMotionError(f"{where + ': ' if where else ''}human trajectory does not move: its path length "
                                    f"is 0" + _noise_note(human, cfg))
-        path = _Path(np.array(human, dtype=float), vertices, s)  # a copy: the caller's array may change later
-        self._paths = ((key, path),) + self._paths[:PATH_MEMO - 1]  # one assignment: safe across threads
-        return path
+        return _Path(human, vertices, s, indices, offset)
+
+    def _restarted(self, path: "_Path", at: int | None = None) -> "_Path | None":
+        """The reading of ``path`` from where it last set off from its start (``promp.preprocessing.restart_vertex``),
+        or from its sample ``at``: the samples from there on, moved to begin where the motion began (Eq. 14 on them).
+        None when the motion set off only once (or ``at`` is 0)."""
+        if at is None:
+            j = restart_vertex(path.vertices, self.config.resample_tolerance)
+            at = int(path.indices[j]) if j else 0
+        if not at:
+            return None
+        y = path.y[at:] - path.y[at] + path.y[0]
+        return self._walked(y, None, path.offset + at)
 
     def path_length(self, human, *, workspace: Workspace | None = None, normalized: bool = False,
                     where: str | None = None) -> float:

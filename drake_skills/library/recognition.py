@@ -20,7 +20,7 @@ rule out. The answers are those of scoring every component one by one
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -104,10 +104,31 @@ class RecognitionMixin:
             y = self.human_samples(human, workspace=workspace, observed_fraction=observed_fraction,
                                    normalized=normalized)
             self._guard(y, workspace, normalized, whole=float(observed_fraction) == 1, query=True, where=None)
-            return self._recognize_fixed(y, float(observed_fraction))
+            rec = self._recognize_fixed(y, float(observed_fraction))
+            if observed_fraction != 1:  # the caller's fraction is of the motion as given
+                return rec
+            return self._read_again(rec, self._normalized(human, workspace, normalized), self._recognize_whole)[0]
         path = self._normalized(human, workspace, normalized)
         self._guard(path.y, workspace, normalized, whole=False, query=True, where=None)
-        return self._recognize_prefix(path)
+        return self._read_again(self._recognize_prefix(path), path, self._recognize_prefix)[0]
+
+    def _recognize_whole(self, path: "_Path") -> Recognition:
+        return self._recognize_fixed(path.resample(self.config.n_samples), 1.0)
+
+    def _read_again(self, rec: Recognition, path: "_Path", read, given: int | None = None
+                    ) -> tuple[Recognition, "_Path"]:
+        """``rec`` and the path it read, or, for an unknown motion that set off more than once, the reading from
+        its last start when that names a skill or is undecided (``LibraryConfig.skip_false_starts``). ``given``:
+        the caller chose where to read from (``restart``), so ``rec`` stands."""
+        if rec.status != "unknown" or not self.config.skip_false_starts or given is not None:
+            return rec, path
+        again = self._restarted(path)
+        if again is None:
+            return rec, path
+        rec2 = read(again)
+        if rec2.status == "unknown":
+            return rec, path
+        return replace(rec2, restart=again.offset), again
 
     def _empty_recognition(self, dof) -> Recognition:
         z = np.zeros(0)
@@ -253,7 +274,8 @@ class RecognitionMixin:
         return self._decide(logp, d2, dof, phases, scored=idx, shares=guess)
 
     def predict_robot(self, human, observed_fraction: float | None = None, *, workspace: Workspace | None = None,
-                      component: int | None = None, n_steps: int | None = None, normalized: bool = False):
+                      component: int | None = None, n_steps: int | None = None, normalized: bool = False,
+                      restart: int | None = None):
         """Robot trajectory for an observed human motion (Eqs. 12-13).
 
         Recognizes the skill (unless ``component`` is given), conditions its
@@ -264,7 +286,11 @@ class RecognitionMixin:
         covariance are those of the scaled predictor.
         Without ``observed_fraction`` the fraction observed is estimated as in
         :meth:`recognize`. ``normalized=True``: ``human`` is already in the library's
-        normalized units (see :meth:`human_samples`).
+        normalized units (see :meth:`human_samples`). A motion recognized here is read as
+        :meth:`recognize` reads it (from a restart after a false start, when that is what
+        names the skill). ``restart``: read it from that sample on instead (the
+        ``Recognition.restart`` of an earlier answer, typically with ``component`` given);
+        0: the whole motion; None (default): as :meth:`recognize` reads it.
 
         Returns
         -------
@@ -289,8 +315,9 @@ class RecognitionMixin:
         if observed_fraction is None:
             path = self._normalized(human, workspace, normalized)
             self._guard(path.y, workspace, normalized, whole=False, query=True, where=None)
+            path = self._restarted_at(path, restart)
             if component is None:
-                rec = self._recognize_prefix(path)
+                rec, path = self._read_again(self._recognize_prefix(path), path, self._recognize_prefix, restart)
                 if rec.component is None:
                     raise UnknownSkillError(_unknown_message(rec))
                 component, f = rec.component, rec.phase
@@ -301,8 +328,14 @@ class RecognitionMixin:
             f = check_fraction(observed_fraction)
             y = self.human_samples(human, workspace=workspace, observed_fraction=f, normalized=normalized)
             self._guard(y, workspace, normalized, whole=f == 1, query=True, where=None)
+            if restart or (component is None and f == 1):
+                path = self._restarted_at(self._normalized(human, workspace, normalized), restart)
+                y = path.resample(y.shape[0])
             if component is None:
                 rec = self._recognize_fixed(y, f)
+                if f == 1:
+                    rec, path = self._read_again(rec, path, self._recognize_whole, restart)
+                    y = path.resample(y.shape[0])
                 if rec.component is None:
                     raise UnknownSkillError(_unknown_message(rec))
                 component = rec.component
@@ -394,10 +427,19 @@ class RecognitionMixin:
         return self._prefix[1]
 
     def estimate_phase(self, human, component: int, *, workspace: Workspace | None = None,
-                       normalized: bool = False) -> float:
-        """How much of component ``component``'s motion ``human`` covers (0-1), as :meth:`recognize` estimates it."""
+                       normalized: bool = False, restart: int | None = None) -> float:
+        """How much of component ``component``'s motion ``human`` covers (0-1), as :meth:`recognize` estimates it
+        (``restart``: from that sample on, as in :meth:`predict_robot`)."""
         self._check_fitted()
-        return self._phase_of(self._normalized(human, workspace, normalized), self._model(component))
+        path = self._restarted_at(self._normalized(human, workspace, normalized), restart)
+        return self._phase_of(path, self._model(component))
+
+    def _restarted_at(self, path: "_Path", restart: int | None) -> "_Path":
+        """``path`` read from its sample ``restart`` on (None or 0: whole; see :meth:`predict_robot`)."""
+        if restart is None:
+            return path
+        at = check_integer(restart, "restart", 0, path.y.shape[0] - 2)
+        return self._restarted(path, at) or path
 
     def _phase_of(self, path: "_Path", c: ComponentModel) -> float:
         """The phase of one component that explains the normalized path ``y`` best (see :mod:`.prefix`)."""
@@ -498,6 +540,10 @@ class _Path:
     y: np.ndarray
     vertices: np.ndarray
     s: np.ndarray
+    #: The sample of ``y`` each vertex starts at (None for a cut path).
+    indices: np.ndarray | None = None
+    #: The sample of the caller's motion ``y`` begins at (a reading from a restart).
+    offset: int = 0
 
     @property
     def length(self) -> float:

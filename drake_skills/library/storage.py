@@ -427,6 +427,7 @@ def _state_of(meta: dict, version: int, arrays, where: str) -> LibraryState:
         cfg_meta.setdefault("single_demo_quantile", 1.0)  # optional key: a file written before the rule had none
         cfg_meta.setdefault("split_within_share", 1.0)  # optional key: a file written before it split on distance alone
         cfg_meta.setdefault("keep_single_demos_apart", False)  # optional key: a file written before it merged them
+        cfg_meta.setdefault("skip_false_starts", False)  # optional key: a file written before it read motions whole
         config = LibraryConfig.from_dict(cfg_meta)
         comps_meta = list(meta["components"])
         dim_h, dim_r = meta["dim_human"], meta["dim_robot"]

@@ -212,6 +212,11 @@ class Recognition:
     #: of ``posterior`` but cannot be the answer. The reason a motion whose most probable component is
     #: one of them is "undecided" (``RecognitionMixin._decide``): demonstrate that skill again.
     seen_once: tuple[int, ...] = ()
+    #: None: the motion was read whole. An int ``i``: the motion as a whole was unknown, and it is read
+    #: from its sample ``i`` on, where it last set off from its start (a false start before it;
+    #: ``LibraryConfig.skip_false_starts``); pass it on to :meth:`SkillLibrary.predict_robot` and
+    #: ``estimate_phase`` with a component of your choice (``restart=i``).
+    restart: int | None = None
 
     @property
     def unknown(self) -> bool:

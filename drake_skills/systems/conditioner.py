@@ -93,7 +93,8 @@ class Conditioning(Shared):
 
 
 def condition_robot(library: SkillLibrary, component: int, motion: ObservedMotion, start_time: float, *,
-                    n_steps: int | None = None, whole: bool = True, revision: int = 0) -> ConditionedTrajectory:
+                    n_steps: int | None = None, whole: bool = True, revision: int = 0,
+                    restart: int = 0) -> ConditionedTrajectory:
     """Condition component ``component`` on the observed motion (Eq. 13).
 
     Parameters
@@ -110,6 +111,9 @@ def condition_robot(library: SkillLibrary, component: int, motion: ObservedMotio
         The motion is complete; otherwise it is a prefix whose phase the library
         estimates for this component.
     revision : int
+    restart : int
+        Condition on the samples from this one on (the gating's ``restart``: the library read
+        the motion from there, after a false start); 0: all.
 
     Raises
     ------
@@ -120,9 +124,9 @@ def condition_robot(library: SkillLibrary, component: int, motion: ObservedMotio
     if whole:
         phase = 1.0
     else:
-        phase = library.estimate_phase(motion.samples, int(component), normalized=True)
+        phase = library.estimate_phase(motion.samples, int(component), normalized=True, restart=restart)
     mean, cov = library.predict_robot(motion.samples, phase, normalized=True, component=int(component),
-                                      n_steps=n_steps)
+                                      n_steps=n_steps, restart=restart)
     std = np.sqrt(np.maximum(np.diagonal(cov, axis1=1, axis2=2), 0.0))
     return ConditionedTrajectory(int(component), mean, std, float(c.duration), float(start_time), int(revision),
                                  float(phase))
@@ -164,7 +168,7 @@ def conditioning_step(state: Conditioning, decision: GatingDecision, library: Sk
     revision = state.trajectory.revision + 1 if same else 0
     try:
         traj = condition_robot(library, k, decision.motion, start, n_steps=n_steps, whole=decision.final,
-                               revision=revision)
+                               revision=revision, restart=decision.restart)
     except (KeyError, ValueError) as exc:
         log.warning("cannot condition component %d: %s; the robot holds still", k, exc)
         traj = None

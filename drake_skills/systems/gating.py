@@ -67,6 +67,9 @@ class Belief(Shared):
         Its estimated fraction observed (NaN when unknown).
     posterior : tuple of (int, float)
         (component id, p(k | motion)) for the components that explain the motion.
+    restart : int
+        The sample the library read the motion from (``Recognition.restart``: after a false
+        start); 0: the whole motion.
     """
 
     time: float
@@ -75,6 +78,7 @@ class Belief(Shared):
     confidence: float
     phase: float
     posterior: tuple = ()
+    restart: int = 0
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,6 +147,14 @@ class GatingDecision(Shared):
     def belief(self) -> Belief | None:
         """The last re-decision, or None."""
         return self.beliefs[-1] if self.beliefs else None
+
+    @property
+    def restart(self) -> int:
+        """The sample the committed skill read the motion from (the last answer that named it; 0: whole)."""
+        if self.component is None:
+            return 0
+        b = next((x for x in reversed(self.beliefs) if x.status == "skill" and x.best == self.component), None)
+        return 0 if b is None else b.restart
 
 
 def motion_is_over(motion: ObservedMotion, rule: DecisionRule) -> bool:
@@ -237,7 +249,7 @@ def _belief(time: float, rec) -> Belief:
     if rec is None:
         return Belief(float(time), "unknown", None, 0.0, float("nan"))
     post = tuple((int(k), float(p)) for k, p in zip(rec.ids, rec.posterior) if p > 0)
-    return Belief(float(time), rec.status, rec.best, rec.confidence, rec.phase, post)
+    return Belief(float(time), rec.status, rec.best, rec.confidence, rec.phase, post, int(rec.restart or 0))
 
 
 def _answer(b: Belief):

@@ -584,7 +584,7 @@ def test_config_rejects_bad_values_and_round_trips():
         LibraryConfig.from_dict({"magic": 1.0})
     # a cold review found these accepted ("no" acts as true) or refused without the field's name
     for name in ("basis_normalized", "subtract_start", "conditioning_gain", "adapt_to_noise", "average_holds",
-                 "keep_single_demos_apart"):
+                 "keep_single_demos_apart", "skip_false_starts"):
         with pytest.raises(ValueError, match=f"LibraryConfig.{name} must be true or false, got 'no'"):
             LibraryConfig(**{name: "no"})
     for bad in (float("nan"), float("inf"), "x", 4.5, True):

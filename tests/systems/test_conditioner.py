@@ -142,3 +142,31 @@ def test_a_switch_starts_a_new_trajectory_and_giving_up_withdraws_it(library, de
     assert b.component == ids[1] and b.trajectory.start_time == 2.0 and b.trajectory.revision == 0
     gone = conditioning_step(b, GatingDecision(motion, None, False, "pending", 2.5), library, 2.5)
     assert gone.component is None and gone.trajectory is None and not gone.final
+
+
+def test_a_commit_read_after_a_false_start_is_conditioned_on_the_motion_from_its_restart(library, demo):
+    """The gating's last answer naming the committed skill read the motion from sample 29 (a false start before it):
+    the conditioner conditions on the samples from there on, as predict_robot does on the motion alone (1e-9)."""
+    from drake_skills.systems.gating import Belief, gating_step
+    from drake_skills.systems.decision_rule import DecisionRule
+
+    z = np.sin(np.linspace(0.0, np.pi, 30))[:, None]
+    fs = demo.human[0] + z * np.array([1.0, -4.0, 2.0])
+    human = np.vstack([fs, demo.human[1:]])
+    t = (demo.t[1] - demo.t[0]) * np.arange(len(human))
+    rec = library.recognize(human, workspace=WORKSPACE)
+    assert rec.status == "skill" and rec.restart == 29
+    # gating_step records the restart of the answer it commits on
+    state = GatingDecision(ObservedMotion(np.zeros(0), np.zeros((0, 3))))
+    rule = DecisionRule(confirmations=1)
+    y = WORKSPACE.normalize(human)
+    for ti, yi in zip(t, y):
+        state = gating_step(state, ti, yi, library, rule)
+    assert state.component == rec.component and state.restart == 29
+    traj = condition_robot(library, rec.component, ObservedMotion(t, y), 0.0, restart=state.restart)
+    mean, _ = library.predict_robot(human[29:], workspace=WORKSPACE, component=rec.component)
+    np.testing.assert_allclose(traj.mean, mean, atol=1e-9)
+    # a decision whose last answer naming the committed skill read the whole motion has restart 0
+    b = Belief(1.0, "skill", rec.component, 1.0, 1.0, (), 0)
+    assert GatingDecision(ObservedMotion(t, y), rec.component, beliefs=(b,)).restart == 0
+    assert GatingDecision(ObservedMotion(t, y), None, beliefs=(Belief(1.0, "skill", 3, 1.0, 1.0, (), 5),)).restart == 0
