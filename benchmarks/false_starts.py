@@ -5,8 +5,9 @@ Not a speed benchmark: the experiment behind RESULTS.md's "False starts". Develo
 TRAINING split by internal validation, ``development_splits``: 3 draws x ``--orders`` orders; LASA half A: the
 15 shapes the defaults were chosen on, 4 demonstrations of each taught, 3 held out, 3 draws). Every held-out
 motion is recognized three ways: clean; after a false start that is the first 15-35 % of its own path, out and
-back to where it began ("same"); after the first 15-35 % of the path of a motion of another task, moved to begin
-where this one begins, out and back ("other"). Whole motions (``observed_fraction=1``) and beginnings (the real
+back to near where it began ("same"); after the first 15-35 % of the path of a motion of another task, moved to
+begin where this one begins, out and back ("other"). The false start comes back up to 5 % of the motion's extent
+away from its start (a random direction), and the motion itself is moved there. Whole motions (``observed_fraction=1``) and beginnings (the real
 motion cut at 30 / 50 / 70 % of its path after the false start, the phase estimated), each as correct / wrong /
 unknown / undecided, with the setting on and off::
 
@@ -41,13 +42,18 @@ def _path_index(human: np.ndarray, share: float) -> int:
 
 def with_false_start(demo: Demonstration, rng: np.random.Generator, source: Demonstration | None = None
                      ) -> tuple[Demonstration, int]:
-    """``demo`` after a false start (the first 15-35 % of ``source``'s path, or of its own, out and back), and the
-    sample where ``demo`` itself begins."""
+    """``demo`` after a false start (the first 15-35 % of ``source``'s path, or of its own, out and back to within
+    5 % of ``demo``'s extent of its start; ``demo`` moved to begin there), and the sample where ``demo`` begins."""
     src = demo if source is None else source
     i = max(2, _path_index(src.human, rng.uniform(0.15, 0.35)))
     out = src.human[:i] - src.human[0] + demo.human[0]
-    lead = np.vstack([out, out[::-1][1:]])
-    human = np.vstack([lead, demo.human[1:]])
+    # the person comes back near, not exactly to, where they began: up to 5 % of the motion's extent away
+    extent = float(np.linalg.norm(demo.human - demo.human[0], axis=1).max())
+    miss = rng.normal(size=demo.human.shape[1])
+    miss *= rng.uniform(0.0, 0.05) * extent / np.linalg.norm(miss)
+    back = out[::-1][1:] + np.linspace(0.0, 1.0, len(out) - 1)[:, None] * miss
+    lead = np.vstack([out, back])
+    human = np.vstack([lead, demo.human[1:] + miss])
     t = np.mean(np.diff(demo.t)) * np.arange(len(human))
     robot = None if demo.robot is None else np.vstack([np.repeat(demo.robot[:1], len(lead), 0), demo.robot[1:]])
     return Demonstration(t=t, human=human, robot=robot, task=demo.task, name=f"{demo.name}+false-start"), len(lead) - 1

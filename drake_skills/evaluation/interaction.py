@@ -375,7 +375,8 @@ def interaction_trial(ctx: InteractionContext, index: int) -> InteractionTrial:
         j = int(np.argmin(rec.mahalanobis_sq))
         d2_min[i], d2_thr[i] = rec.mahalanobis_sq[j], chi2_ppf(cfg.novelty_quantile, int(np.max(rec.dof)))
         if rec.status == "skill":
-            mean, _ = lib.predict_robot(d.human, observed_fraction=1.0, component=rec.component, n_steps=s.n_steps)
+            mean, _ = lib.predict_robot(d.human, observed_fraction=1.0, component=rec.component, n_steps=s.n_steps,
+                                        restart=rec.restart)
             c = lib.component(rec.component)
             prior = Phi_r @ np.asarray(c.mean[c.n_human:]).reshape(lib.dim_robot_, -1).T
             errs[:, i] = (_rms(mean, ctx.test_robot[i]), _rms(prior, ctx.test_robot[i]),

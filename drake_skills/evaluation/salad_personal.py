@@ -168,14 +168,15 @@ def response_errors(lab: LabeledLibrary, demo: Demonstration, workspace: Workspa
     targets = {}
     for i, f in enumerate(fractions):
         human = observed_prefix(demo.human, f, workspace, lib.config.resample_tolerance, **lib.config.walk_options())
-        outcome, comp = lab.classify(human, demo.task, workspace, f)
-        out["outcome"][i] = outcome
+        got = lib.recognize(human, observed_fraction=f, workspace=workspace)
+        comp = got.component
+        out["outcome"][i] = lab.outcome(comp, demo.task, got.status)
         rec = lib.recognize(human, workspace=workspace)  # the fraction not given: the phase is estimated
         out["anticipated"][i] = lab.outcome(rec.component, demo.task, rec.status)
         out["phase"][i] = rec.phase
         if comp is None:
             continue
-        mean, _ = lib.predict_robot(human, f, workspace=workspace, component=comp)
+        mean, _ = lib.predict_robot(human, f, workspace=workspace, component=comp, restart=got.restart)
         n = mean.shape[0]
         if n not in targets:
             targets[n] = resample_in_time(demo.t, demo.robot, n)

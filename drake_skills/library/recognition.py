@@ -34,9 +34,10 @@ from drake_skills.library.novelty import Chi2Rule, chi2_ppf
 from drake_skills.library.prefix import PHASE_GRID, phase_band, score_at_phase, score_component, score_prefix
 from drake_skills.library.prefix_bound import prefix_candidates
 from drake_skills.library.scale import BEGINNING_FRACTIONS, beginning_blind, cross_covariance, observation_noise
-from drake_skills.library.views import Recognition, UnknownSkillError
+from drake_skills.library.views import Recognition, StillMotionError, UnknownSkillError
 from drake_skills.promp.basis import GaussianBasis, ridge_weights, trajectory_covariance
 from drake_skills.promp.interaction import condition_on_observations, conditioned_mean_shift
+from drake_skills.promp.preprocessing import restart_vertex
 
 __all__ = ["PRUNE_MIN_COMPONENTS", "RecognitionMixin"]
 
@@ -122,13 +123,36 @@ class RecognitionMixin:
         the caller chose where to read from (``restart``), so ``rec`` stands."""
         if rec.status != "unknown" or not self.config.skip_false_starts or given is not None:
             return rec, path
-        again = self._restarted(path)
+        if self._sets_off_twice().any():   # a skill of its own may begin so: its motions are no false starts
+            return rec, path
+        try:
+            again = self._restarted(path)
+        except StillMotionError:  # what follows the last start does not move (e.g. its noise is all there is)
+            return rec, path
         if again is None:
             return rec, path
         rec2 = read(again)
         if rec2.status == "unknown":
             return rec, path
         return replace(rec2, restart=again.offset), again
+
+    def _sets_off_twice(self) -> np.ndarray:
+        """Which components' mean human paths set off from their start more than once (K,) (``restart_vertex``).
+
+        A library that learned such a skill (a beckon: out and back, then a reach) does not read unknown
+        motions from a restart: one of them may be that skill, shown larger or slower, and its tail another
+        skill. Once per library version.
+        """
+        def compute():
+            cfg = self.config
+            comps = self._components
+            if not len(comps):
+                return np.zeros(0, bool)
+            Phi = cfg.basis_human.phi_uniform(cfg.n_samples)
+            D = self.dim_human_
+            return np.array([restart_vertex(Phi @ c.mean[:self.n_human].reshape(D, -1).T, cfg.resample_tolerance) > 0
+                             for c in comps.items])
+        return self._cached("sets_off_twice", compute)
 
     def _empty_recognition(self, dof) -> Recognition:
         z = np.zeros(0)
@@ -289,8 +313,9 @@ class RecognitionMixin:
         normalized units (see :meth:`human_samples`). A motion recognized here is read as
         :meth:`recognize` reads it (from a restart after a false start, when that is what
         names the skill). ``restart``: read it from that sample on instead (the
-        ``Recognition.restart`` of an earlier answer, typically with ``component`` given);
-        0: the whole motion; None (default): as :meth:`recognize` reads it.
+        ``Recognition.restart`` of an earlier answer: pass it with ``component``); 0: the
+        whole motion; None (default): as :meth:`recognize` reads it when it recognizes the
+        motion here, the whole motion when ``component`` is given.
 
         Returns
         -------
@@ -439,7 +464,10 @@ class RecognitionMixin:
         if restart is None:
             return path
         at = check_integer(restart, "restart", 0, path.y.shape[0] - 2)
-        return self._restarted(path, at) or path
+        try:
+            return self._restarted(path, at) or path
+        except StillMotionError as exc:
+            raise StillMotionError(f"restart {at}: the motion from there on does not move ({exc})") from None
 
     def _phase_of(self, path: "_Path", c: ComponentModel) -> float:
         """The phase of one component that explains the normalized path ``y`` best (see :mod:`.prefix`)."""

@@ -16,7 +16,9 @@ recognized component. Tolerances, per order:
   3 orders: every decision the same, the count within 1 in 21 of 30 and off by 2-3 in the rest,
   mean -0.6). With the walk's vertices at single noisy samples (``average_holds=False``) the
   rest at the end of each interaction added path, and the decisions changed in every draw: the
-  far rocket test interaction (d^2 ~150 against a threshold of 47) was recognized.
+  far rocket test interaction (d^2 ~150 against a threshold of 47) was recognized. Since
+  ``skip_false_starts`` that rocket (037, a false start before it) is read from its restart and
+  recognized; with noise it may be unknown in the first order (never another skill).
 * 10 mm of camera-like noise: no wrong answer with the default ``adapt_to_noise``, and at
   least one without it (the test names the measured counts).
 """
@@ -107,14 +109,23 @@ def test_sampling_rate_and_speed_keep_the_decisions(interactions, baseline, tran
 def test_tracker_noise_of_2mm_keeps_every_decision_and_the_components_within_three(interactions, baseline, seed):
     """Five noise draws x the 3 orders: every decision the same; the component count moves by -3 to +3 (measured
     over draws 2-11: within 1 in 21 of 30, mean -0.6). With the walk's vertices at the samples
-    (``average_holds=False``) the decisions change in every draw (the rocket 037 recognized)."""
+    (``average_holds=False``) the decisions change in every draw (the rocket 037 recognized).
+
+    One exception since ``skip_false_starts`` (2026-12-06): the rocket 037, read from its restart after a false
+    start, lies near the novelty threshold in the first order (d^2 50-65 against 49 with noise in draws 2 and 8
+    of 0-11, 20-32 in the other orders), so with noise it may be unknown there: never another skill."""
     rng = np.random.default_rng(seed)
 
     def noisy(d):
         return _like(d, d.t, d.human + rng.normal(0.0, 0.002, d.human.shape), d.robot)
 
+    names = [d.name for d in interactions.test]
     for (K, ev, dec, d2), (K2, ev2, dec2, d22) in _runs(interactions, baseline, noisy, None):
-        assert dec2 == dec
+        for name, a, b in zip(names, dec, dec2):
+            if ":037:" in name and b != a:
+                assert a == ("skill", "rocket") and b == ("unknown", None), (a, b)
+            else:
+                assert b == a, (name, a, b)
         assert abs(K2 - K) <= 3, (K, K2)
 
 
@@ -122,8 +133,8 @@ def test_camera_noise_of_10mm_gives_no_wrong_answer_because_the_walk_adapts_to_i
     """10 mm of white noise per axis on every interaction (a camera skeleton tracker; 2-2.5 times the
     arc-length tolerance on this workspace). The plain walk counts nearly every sample, its phase
     becomes time-like and the library answers wrong (measured: 4 of 9 wrong in 1 of the 3 orders,
-    components 10, 8, 4); with ``adapt_to_noise`` (the default) none wrong in any order (8 of 9
-    right in each, the rocket 037 unknown as without noise) and at most 10 components (measured
+    components 10, 8, 4); with ``adapt_to_noise`` (the default) none wrong in any order (before
+    ``skip_false_starts`` 8 of 9 right in each, the rocket 037 unknown as without noise) and at most 10 components (measured
     5, 8, 9; 5, 6, 6 with ``average_holds`` off). The noise is drawn once, so both walks see the
     same samples."""
     rng = np.random.default_rng(7)

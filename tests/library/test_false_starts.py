@@ -122,3 +122,117 @@ def test_a_restart_outside_the_motion_is_refused_naming_it(lib, queries):
             lib.predict_robot(fs, 1.0, component=lib.components[0].id, restart=bad)
         with pytest.raises(ValueError, match="restart must be an integer"):
             lib.estimate_phase(fs, lib.components[0].id, restart=bad)
+
+
+def _returning_near(demo, miss=(0.3, -0.2, 0.1), n=30):
+    """``demo`` after a false start that comes back ``miss`` away from the start (not exactly to it), the motion
+    itself moved there; the motion begins at sample ``n - 1``."""
+    z = np.sin(np.linspace(0.0, np.pi, n))[:, None]
+    back = np.linspace(0.0, 1.0, n)[:, None] * np.asarray(miss, float)
+    fs = demo.human[0] + z * np.array([1.0, -4.0, 2.0]) + back
+    human = np.vstack([fs, demo.human[1:] + np.asarray(miss, float)])
+    return type(demo)(t=(demo.t[1] - demo.t[0]) * np.arange(len(human)), human=human, task=demo.task, name="near")
+
+
+def _assert_skips_only_near_the_start(h, restart, begin=29):
+    """The restart lies at or after where the false start came back (``begin``), and the samples of the motion it
+    skips lie within RESTART_NEAR of the farthest distance from the start."""
+    from drake_skills.promp.preprocessing import RESTART_NEAR
+
+    d = np.linalg.norm(h - h[0], axis=1)
+    assert begin <= restart and d[begin:restart + 1].max() <= RESTART_NEAR * d.max(), (restart, d[begin:restart + 1])
+
+
+def test_a_false_start_that_comes_back_near_the_start_is_read_as_the_motion_from_there(lib, queries):
+    """The reading from the restart is Eq. (14) on the samples from there: the same statistics (1e-9) as the
+    motion given from that sample on, whose start the library subtracts itself. The restart is the vertex nearest
+    the start between the two excursions: where the person came back (sample 29), or a little into the motion
+    when it passes nearer to the start than that: what is skipped of the motion stays near the start."""
+    for q in queries:
+        h = _returning_near(q).human
+        rec = lib.recognize(h, observed_fraction=1.0)
+        _assert_skips_only_near_the_start(h, rec.restart)
+        ref = lib.recognize(h[rec.restart:], observed_fraction=1.0)
+        assert (rec.status, rec.component) == (ref.status, ref.component) == ("skill", lib.recognize(q.human).component)
+        np.testing.assert_allclose(rec.mahalanobis_sq, ref.mahalanobis_sq, rtol=1e-9)
+
+
+def test_without_subtracting_the_start_the_reading_from_a_restart_begins_where_the_motion_began():
+    """``subtract_start=False``: the samples from the restart are moved back to the motion's first sample."""
+    rng = np.random.default_rng(0)
+    lib = SkillLibrary(LibraryConfig(workspace=WORKSPACE, subtract_start=False))
+    for i in rng.permutation(18):
+        lib.partial_fit(synthetic_demo(int(i) % 3, rng))
+    h = _returning_near(synthetic_demo(1, np.random.default_rng(7))).human
+    rec = lib.recognize(h, observed_fraction=1.0)
+    assert rec.status == "skill"
+    i = rec.restart
+    _assert_skips_only_near_the_start(h, i)
+    moved = h[i:] - h[i] + h[0]
+    np.testing.assert_allclose(rec.mahalanobis_sq, lib.recognize(moved, observed_fraction=1.0).mahalanobis_sq,
+                               rtol=1e-9)
+
+
+def test_restart_zero_reads_the_whole_motion_even_without_a_component(lib, queries):
+    """``restart=0`` is the caller's choice: the whole motion, false start included, which no skill explains."""
+    fs = _with_false_start(queries[0]).human
+    lib.predict_robot(fs)   # read from its restart: a skill
+    with pytest.raises(UnknownSkillError):
+        lib.predict_robot(fs, restart=0)
+    with pytest.raises(UnknownSkillError):
+        lib.predict_robot(fs, 1.0, restart=0)
+
+
+def test_an_undecided_answer_is_never_read_again(lib, queries):
+    """Only "unknown" is read again: the same motion given as undecided (or as a skill) comes back as it was."""
+    from dataclasses import replace
+
+    h = _with_false_start(queries[0]).human
+    path = lib._normalized(h)
+    unknown = lib._recognize_whole(path)
+    assert unknown.status == "unknown" and lib._read_again(unknown, path, lib._recognize_whole)[0].restart == 29
+    for status in ("undecided", "skill"):
+        rec = replace(unknown, status=status)
+        assert lib._read_again(rec, path, lib._recognize_whole)[0] is rec
+
+
+def test_learning_is_the_same_with_the_setting_on_or_off():
+    """Demonstrations with false starts are learned as given: the same components, means and ids either way."""
+    on, off = _library(skip=True, false_starts=True), _library(skip=False, false_starts=True)
+    assert [c.id for c in on.components] == [c.id for c in off.components]
+    for a, b in zip(on.components, off.components):
+        np.testing.assert_array_equal(a.mean, b.mean)
+        assert a.support == b.support
+
+
+def test_a_library_with_a_skill_that_sets_off_twice_reads_no_motion_again():
+    """A beckon (out and back, then task 0's reach; its own robot answer) is a skill of its own: a larger beckon,
+    unknown as a whole, must not be answered as task 0 from its tail. Without the beckon skill it is."""
+    def beckon(rng, amp=1.0):
+        d = _with_false_start(synthetic_demo(0, rng), toward=amp * np.array([1.0, -4.0, 2.0]))
+        return type(d)(t=d.t, human=d.human, robot=d.robot + np.r_[0.0, 0, 0, 0, 0, 1.0, 0], task="beckon")
+
+    rng = np.random.default_rng(0)
+    lib = SkillLibrary(LibraryConfig(workspace=WORKSPACE))
+    order = [t for _ in range(6) for t in (0, 1, 2, 3)]
+    for i in rng.permutation(len(order)):
+        lib.partial_fit(beckon(rng) if order[i] == 3 else synthetic_demo(order[i], rng))
+    assert lib._sets_off_twice().sum() == 1
+    big = beckon(np.random.default_rng(9), amp=2.0).human
+    rec = lib.recognize(big, observed_fraction=1.0)
+    assert rec.status == "unknown" and rec.restart is None
+    plain = _library()
+    assert not plain._sets_off_twice().any()
+    assert plain.recognize(big, observed_fraction=1.0).restart == 29
+
+
+def test_a_restart_whose_tail_does_not_move_answers_unknown_and_a_given_one_says_so(lib):
+    """Out and back, then noise within the walk's tolerance: read whole it is unknown; its tail has no path, so
+    the answer stays unknown (no StillMotionError). A given restart there is refused naming it."""
+    first = np.sin(np.linspace(0, np.pi, 400))[:, None] * np.array([3.0, 4.0, 0.0])
+    second = np.sin(np.linspace(0, np.pi, 60))[:, None] * np.array([-2.5, 3.0, 1.0])
+    rest = np.full((20, 3), 0.0)
+    h = np.vstack([first, second[1:], rest])
+    assert lib.recognize(h, observed_fraction=1.0).status == "unknown"
+    with pytest.raises(ValueError, match=r"restart 470: the motion from there on does not move"):
+        lib.predict_robot(h, 1.0, component=lib.components[0].id, restart=470)

@@ -48,8 +48,8 @@ def test_three_excursions_restart_before_the_last():
 def test_an_excursion_below_its_share_of_the_motion_does_not_count():
     """The false start must reach RESTART_EXCURSION of the farthest distance (10.44 here)."""
     d_max = float(np.hypot(10.0, 3.0))
-    below = _out_and_back(0.95 * RESTART_EXCURSION * d_max)
-    above = _out_and_back(1.05 * RESTART_EXCURSION * d_max)
+    below = _out_and_back(0.999 * RESTART_EXCURSION * d_max)
+    above = _out_and_back(1.001 * RESTART_EXCURSION * d_max)
     assert restart_vertex(np.vstack([below, _reach()[1:]]), 0.1) == 0
     assert restart_vertex(np.vstack([above, _reach()[1:]]), 0.1) == len(above) - 1
 
@@ -67,13 +67,13 @@ def test_an_excursion_of_fewer_than_the_minimum_tolerances_does_not_count():
 
 def test_back_at_the_start_means_within_the_near_share():
     """The wrist must come back within RESTART_NEAR of the farthest distance; just outside it is one excursion."""
-    for gap, expect_restart in ((0.9, True), (1.1, False)):
+    for gap, expect_restart in ((0.999, True), (1.001, False)):
         a = 1.0
         for _ in range(50):   # the turn point's distance a is gap x RESTART_NEAR x the farthest, which a moves
             a = gap * RESTART_NEAR * float(np.hypot(10.0 + a, 3.0))
         turn = np.array([a, 0.0])
-        out = Z * [0.0, 3.0]
-        back = out[-1] + Z[1:] * (turn - out[-1])             # straight from the peak to the turn point
+        out = Z * [3.0, 0.0]
+        back = out[-1] + Z[1:] * (turn - out[-1])             # straight back towards the start, to the turn point
         v = np.vstack([out, back, turn + _reach()[1:]])
         assert np.linalg.norm(v, axis=1).max() * RESTART_NEAR * gap == pytest.approx(a, rel=1e-9)
         assert (restart_vertex(v, 0.1) > 0) == expect_restart, gap

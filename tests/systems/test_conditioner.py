@@ -170,3 +170,32 @@ def test_a_commit_read_after_a_false_start_is_conditioned_on_the_motion_from_its
     b = Belief(1.0, "skill", rec.component, 1.0, 1.0, (), 0)
     assert GatingDecision(ObservedMotion(t, y), rec.component, beliefs=(b,)).restart == 0
     assert GatingDecision(ObservedMotion(t, y), None, beliefs=(Belief(1.0, "skill", 3, 1.0, 1.0, (), 5),)).restart == 0
+
+
+def test_the_decision_restart_is_that_of_the_last_answer_naming_the_committed_skill():
+    from drake_skills.systems.gating import Belief
+
+    m = ObservedMotion(np.arange(3.0), np.zeros((3, 3)))
+    beliefs = (Belief(1.0, "skill", 2, 1.0, 0.5, (), 11), Belief(2.0, "skill", 3, 1.0, 0.5, (), 22),
+               Belief(3.0, "skill", 2, 1.0, 0.6, (), 33), Belief(4.0, "undecided", 2, 0.6, 0.7, (), 44),
+               Belief(5.0, "skill", 3, 1.0, 0.8, (), 55))
+    assert GatingDecision(m, 2, beliefs=beliefs).restart == 33      # the last "skill" answer naming 2
+    assert GatingDecision(m, 3, beliefs=beliefs).restart == 55
+    assert GatingDecision(m, 4, beliefs=beliefs).restart == 0       # no answer named it
+
+
+def test_conditioning_step_conditions_on_the_motion_from_the_decisions_restart(library, demo):
+    """The conditioner's update passes the gating's restart on (the motion with a false start before it)."""
+    from drake_skills.systems.gating import Belief
+
+    z = np.sin(np.linspace(0.0, np.pi, 30))[:, None]
+    human = np.vstack([demo.human[0] + z * np.array([1.0, -4.0, 2.0]), demo.human[1:]])
+    t = (demo.t[1] - demo.t[0]) * np.arange(len(human))
+    rec = library.recognize(human, workspace=WORKSPACE, observed_fraction=1.0)
+    k, i = rec.component, rec.restart
+    assert i == 29
+    decision = GatingDecision(ObservedMotion(t, WORKSPACE.normalize(human)), k, True, "skill", 1.0,
+                              beliefs=(Belief(1.0, "skill", k, 1.0, 1.0, (), i),))
+    state = conditioning_step(Conditioning(), decision, library, 1.0)
+    mean, _ = library.predict_robot(human[i:], 1.0, workspace=WORKSPACE, component=k)
+    np.testing.assert_allclose(state.trajectory.mean, mean, atol=1e-9)
