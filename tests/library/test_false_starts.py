@@ -236,3 +236,20 @@ def test_a_restart_whose_tail_does_not_move_answers_unknown_and_a_given_one_says
     assert lib.recognize(h, observed_fraction=1.0).status == "unknown"
     with pytest.raises(ValueError, match=r"restart 470: the motion from there on does not move"):
         lib.predict_robot(h, 1.0, component=lib.components[0].id, restart=470)
+
+
+def test_whether_a_skill_sets_off_twice_is_kept_with_each_component_so_an_update_pays_for_what_it_changed(
+        monkeypatch):
+    import drake_skills.library.recognition as recognition
+
+    lib = _library()
+    calls = []
+    real = recognition.restart_vertex
+    monkeypatch.setattr(recognition, "restart_vertex", lambda *a, **k: calls.append(1) or real(*a, **k))
+    assert lib._sets_off_twice().tolist() == [False] * lib.n_components and len(calls) == lib.n_components
+    calls.clear()
+    assert len(lib._sets_off_twice()) == lib.n_components and not calls          # the same version: cached
+    update = lib.partial_fit(synthetic_demo(2, np.random.default_rng(11)))
+    changed = len(set(update.created) | set(update.updated) | {a for a, _ in update.merged})
+    lib._sets_off_twice()
+    assert 1 <= len(calls) <= changed, (calls, update)
