@@ -480,8 +480,7 @@ def restart_vertex(vertices, tolerance: float = 0.0) -> int:
     if len(counted) < 2:
         return 0
     last = counted[-1]
-    before = ends[ends <= last]   # the run near the start before it begins where the previous excursion ended
-    first = int(before[-1]) if before.size else 0
+    first = int(ends[ends < last][-1])   # the run near the start before it begins where an excursion ended
     return first + int(np.argmin(d[first:last]))
 
 

@@ -253,3 +253,24 @@ def test_whether_a_skill_sets_off_twice_is_kept_with_each_component_so_an_update
     changed = len(set(update.created) | set(update.updated) | {a for a, _ in update.merged})
     lib._sets_off_twice()
     assert 1 <= len(calls) <= changed, (calls, update)
+
+
+@pytest.mark.filterwarnings("ignore::drake_skills.library.views.UnitsWarning")  # small on purpose
+def test_an_excursion_of_fewer_than_five_walk_tolerances_is_no_false_start():
+    """A small motion (its farthest 1.3 normalized units): an out and back of 0.42 units (its walked vertices
+    0.35-0.42) reaches a fifth of it, but not 5 tolerances (0.5): not a false start, so the motion stays unknown;
+    0.8 units is one. (Without the tolerance floor the first is read again: checked.)"""
+    rng = np.random.default_rng(0)
+    lib = SkillLibrary(LibraryConfig(workspace=WORKSPACE))
+
+    def small(d):
+        return type(d)(t=d.t, human=0.2 * d.human, robot=d.robot, task=d.task)
+
+    for t in [0, 1, 2] * 6:
+        lib.partial_fit(small(synthetic_demo(t, rng)))
+    q = small(synthetic_demo(0, np.random.default_rng(7)))
+    for size, read_again in ((0.42, False), (0.8, True)):
+        h = _with_false_start(q, toward=size * np.array([0.0, 0.0, 1.0])).human
+        rec = lib.recognize(h, observed_fraction=1.0)
+        assert rec.status == ("skill" if read_again else "unknown") and (rec.restart is not None) == read_again, \
+            (size, rec.status, rec.restart)

@@ -80,7 +80,15 @@ def test_back_at_the_start_means_within_the_near_share():
 
 
 def test_refuses_what_is_not_a_finite_path():
-    with pytest.raises(ValueError, match="vertices"):
-        restart_vertex(np.array([[0.0, np.nan]]))
-    with pytest.raises(ValueError, match="vertices"):
-        restart_vertex(np.zeros(5))
+    for bad in (np.array([[0.0, np.nan]]), np.zeros(5), np.zeros((0, 2))):
+        with pytest.raises(ValueError, match="^vertices "):
+            restart_vertex(bad)
+
+
+def test_distances_are_from_the_motions_own_start_wherever_it_lies():
+    """The same motions moved away from the origin: the same answers (distances are from the first vertex)."""
+    fs = _out_and_back(3.0)
+    for offset in ([0.0, 0.0], [50.0, -20.0], [-7.0, 3.0]):
+        assert restart_vertex(np.vstack([fs, _reach()[1:]]) + offset, 0.1) == len(fs) - 1
+        assert restart_vertex(_reach() + offset, 0.1) == 0
+        assert restart_vertex(np.vstack([_reach(), _reach()[::-1]]) + offset, 0.1) == 0
