@@ -117,11 +117,13 @@ class LibraryConfig:
     #: start, if it set off more than once (a false start: the person began, came back and began
     #: again; ``promp.preprocessing.restart_vertex``), and that reading is the answer when it names a
     #: skill (``Recognition.restart`` says from which sample). Answers that are not "unknown" never
-    #: change, nor does learning: a demonstration is learned as given. On the buetepage training
-    #: split and LASA half A with a false start put before each held-out motion (the beginning of the
-    #: same or of another task, out and back) it answers as on the clean motions, where without it
-    #: nearly all were unknown; no wrong answer either way (RESULTS.md, "False starts"). A deviation
-    #: from the paper. Files written before it load with it off.
+    #: change, nor does learning: a demonstration is learned as given. A library that has learned a
+    #: skill whose mean path itself sets off twice reads nothing again. On the buetepage training split
+    #: and LASA half A with a false start put before each held-out motion (the beginning of the same or
+    #: of another task, out and back to near the start) it answers as on the clean motions less 2-10
+    #: points, where without it nearly all were unknown; no wrong whole-motion answer either way, and
+    #: beginnings wrong at the rate of the clean ones (RESULTS.md, "False starts"). A deviation from the
+    #: paper. Files written before it load with it off.
     skip_false_starts: bool = True
     #: Default workspace for human data (None: data is already normalized);
     #: a per-call ``workspace`` argument overrides it (one per subject).

@@ -63,7 +63,7 @@ RESTART_NEAR = 0.1
 #: ... and an excursion from the start counts when it reaches this share of that farthest distance
 #: (and :data:`RESTART_MIN_TOLERANCES` walk tolerances). Set by the construction, not tuned: a
 #: person's return to where they began lies within a few centimetres of a 40-60 cm motion
-#: (buetepage_hr test interaction 037: back within 3 cm after 14 cm, then 56 cm), and a fifth of the
+#: (buetepage_hr test interaction 037: back within 2.3 cm after 14 cm, then 56 cm), and a fifth of the
 #: motion is well above the wrist's drift at rest. On every clean data set we have (LASA-30, the
 #: buetepage interactions, salad subjects 1-10 in both models) only interaction 037 has two such
 #: excursions; of 3000 synthetic demonstrations (random paths from the origin) 115 do.
