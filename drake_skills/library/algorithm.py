@@ -485,14 +485,14 @@ class Step:
 
 
 def _new_component(cid: int, created: int, w, duration: float, path_length: float,
-                   pending: np.ndarray | None = None) -> ComponentModel:
-    cl = Cluster.of_sample(w, duration, path_length, pending=pending)
+                   pending: np.ndarray | None = None, task: str | None = None) -> ComponentModel:
+    cl = Cluster.of_sample(w, duration, path_length, pending=pending, task=task)
     return ComponentModel(cid, created, cl, (cl, None))
 
 
 def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: float, path_length: float, *,
             n_human: int, config, rule: NoveltyRule, next_id: int, demo_index: int, fit_residual: float = 0.0,
-            beginnings=None) -> Step:
+            beginnings=None, task: str | None = None) -> Step:
     """Algorithm 1 for one demonstration with stacked weights ``w`` (d,) = ``[w_h; w_r]``.
 
     Parameters
@@ -525,6 +525,9 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
         added to its record of beginnings (``Cluster.tested``, ``Cluster.missed``; its
         sub-cluster's too); for a novel demonstration, of the nearest component, kept as the new
         component's pending test (``Cluster.pending``, counted if it merges). None: no record.
+    task : str, optional
+        The demonstration's task name, counted in the clusters it joins at their responsibility
+        (``Cluster.tasks``); it plays no part in the update itself.
     """
     h = n_human
     work = _Work(comps, h)
@@ -556,7 +559,7 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
     if novel:
         # its beginnings against the nearest component: they join its record if it merges (Cluster.pending)
         pending = beginnings(int(np.argmin(d2))) if beginnings is not None and len(comps.items) else None
-        work.append(_new_component(next_id, demo_index, w, duration, path_length, pending))
+        work.append(_new_component(next_id, demo_index, w, duration, path_length, pending, task))
         created.append(next_id)
         history.append({"event": "created", "id": next_id, "demo": demo_index})
         next_id += 1
@@ -570,19 +573,19 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
             # the record of beginnings: only the component the demonstration mostly joins
             full = c.cluster.tested.min() >= RECORD_TESTS   # a full record is not tested again
             missed = beginnings(int(i)) if beginnings is not None and l >= 0.5 and not full else None
-            cluster, g = c.cluster.add(w, l, duration, path_length, missed)
+            cluster, g = c.cluster.add(w, l, duration, path_length, missed, task)
             scale = scale.with_scatter(g, +1.0, l)
             a, b = c.subclusters
             if b is None:
-                j, b = 1, Cluster.of_sample(w, duration, path_length, support=l, missed=missed)
+                j, b = 1, Cluster.of_sample(w, duration, path_length, support=l, missed=missed, task=task)
             else:
                 da = metric.whiten(a.mean[:h]) - zw
                 db = metric.whiten(b.mean[:h]) - zw
                 j = int(db @ db < da @ da)
                 if j == 0:
-                    a = a.add(w, l, duration, path_length, missed)[0]
+                    a = a.add(w, l, duration, path_length, missed, task)[0]
                 else:
-                    b = b.add(w, l, duration, path_length, missed)[0]
+                    b = b.add(w, l, duration, path_length, missed, task)[0]
             work.set(int(i), ComponentModel(c.id, c.created, cluster, (a, b)))
             updated.append(c.id)
             subs[c.id] = j

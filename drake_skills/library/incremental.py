@@ -612,7 +612,8 @@ class SkillLibrary(RecognitionMixin, FileMixin):
                 def beginnings(k):  # the record of beginnings (RecognitionMixin._beginnings_missed)
                     return self._beginnings_missed(normalized_path, k)
             step = fold_in(comps, scale, w, demo.duration, path, n_human=h, config=self.config, rule=self._rule,
-                           next_id=self._next_id, demo_index=n, fit_residual=fit_residual, beginnings=beginnings)
+                           next_id=self._next_id, demo_index=n, fit_residual=fit_residual, beginnings=beginnings,
+                           task=None if demo.task is None else str(demo.task))
         _check_finite_step(step, w, where)
         gain = self._gain
         if cfg.conditioning_gain and step.recognized is not None and demo.robot is not None:

@@ -28,12 +28,13 @@ import numpy as np
 from drake_skills._checks import check_fraction, check_integer
 from drake_skills.data.workspace import Workspace
 from drake_skills.library.algorithm import (YOUNG_SUPPORT, ComponentModel, gating_scores, responsibilities,
-                                           single_demo_rule)
+                                           single_demo_rule, two_sample_d2)
 from drake_skills.library.gain import scale_correction
 from drake_skills.library.novelty import Chi2Rule, chi2_ppf
 from drake_skills.library.prefix import PHASE_GRID, phase_band, score_at_phase, score_component, score_prefix
 from drake_skills.library.prefix_bound import prefix_candidates
-from drake_skills.library.scale import BEGINNING_FRACTIONS, beginning_blind, cross_covariance, observation_noise
+from drake_skills.library.scale import (BEGINNING_FRACTIONS, beginning_blind, cross_covariance, main_task,
+                                        mixed_share, observation_noise)
 from drake_skills.library.views import Recognition, StillMotionError, UnknownSkillError
 from drake_skills.promp.basis import GaussianBasis, ridge_weights, trajectory_covariance
 from drake_skills.promp.interaction import condition_on_observations, conditioned_mean_shift
@@ -204,6 +205,11 @@ class RecognitionMixin:
             status, comp = "skill", ids[best]
         else:
             status, comp = "undecided", None
+        contested = ()
+        if status == "skill" and isinstance(self._rule, Chi2Rule):
+            contested = self._contested(best)
+            if contested:
+                status, comp = "undecided", None   # the teacher named these differently: not acted on
         blind = ()
         if status == "skill" and shares is not None and isinstance(self._rule, Chi2Rule):
             mask = beginning_blind(*comps.beginnings, shares)
@@ -217,7 +223,27 @@ class RecognitionMixin:
             if mask.any():
                 status, comp, blind = "undecided", None, tuple(ids[i] for i in np.flatnonzero(mask))
         seen_once = tuple(ids[i] for i in np.flatnonzero(fits & ~answers)) if answers.any() else ()
-        return Recognition(comp, ids, resp, logp, d2, dof, status, phases, post, blind, seen_once)
+        return Recognition(comp, ids, resp, logp, d2, dof, status, phases, post, blind, seen_once,
+                           contested=contested)
+
+    def _contested(self, best: int) -> tuple[int, ...]:
+        """Ids of the components that make acting on component row ``best`` unsafe by their task names: ``best``
+        itself when it was taught as several tasks (``mixed_task_share``), or the components taught as another
+        task whose means lie within ``other_task_reach`` times the merge limit of its (two-sample distance under
+        the shared metric: fragments of one motion lie so close), once the shared scale is more data than prior
+        (pooled dof ``nu >= prior_strength``). Empty without task names."""
+        cfg = self.config
+        comps = self._components
+        tasks = comps.items[best].cluster.tasks
+        if mixed_share(tasks) >= cfg.mixed_task_share:
+            return (comps.ids[best],)
+        task = main_task(tasks)
+        if task is None or not cfg.other_task_reach > 0 or len(comps) < 2 or self._scale.dof < cfg.prior_strength:
+            return ()  # (while the scale is more prior than data every pair lies near: skills seen once, the rule
+            #           of single_demo_quantile, keep a young library safe)
+        d2 = two_sample_d2(self._whitened_means(), comps.support, best)
+        near = np.flatnonzero(d2 <= cfg.other_task_reach * chi2_ppf(cfg.merge_quantile, self.n_human))
+        return tuple(comps.ids[i] for i in near if main_task(comps.items[i].cluster.tasks) not in (None, task))
 
     def _same_response(self, best: int, candidates: np.ndarray) -> np.ndarray:
         """Which candidates answer like component ``best`` (a mask, ``best`` included).
@@ -227,7 +253,8 @@ class RecognitionMixin:
         weights; the human weights of a human-only library) lies within the best's
         predictive within-skill spread (the ``novelty_quantile`` of the distance under
         ``Sigma_rr (1 + 1/s_best)``) answers the same way, so its probability counts
-        for ``best`` in the decision.
+        for ``best`` in the decision; unless its demonstrations were taught under another
+        task name than ``best``'s (``Cluster.tasks``): the teacher said they differ.
         """
         comps = self._components
         h = self.n_human
@@ -235,6 +262,9 @@ class RecognitionMixin:
         out = np.zeros(len(comps), bool)
         out[best] = True
         others = idx[idx != best]
+        task = main_task(comps.items[best].cluster.tasks)
+        if task is not None:  # a component taught as another task does not answer like it, whatever its response
+            others = np.array([j for j in others if main_task(comps.items[j].cluster.tasks) in (None, task)], int)
         if not others.size:
             return out
         block = slice(h, None) if self.has_robot else slice(0, h)
@@ -609,6 +639,10 @@ def undecided_reason(rec: Recognition) -> str:
     """
     if rec.status != "undecided":
         return ""
+    if rec.contested:
+        if rec.contested == (rec.best,):
+            return f"taught as several tasks: {rec.best}"
+        return f"{rec.best} lies near skills taught as other tasks: " + ", ".join(map(str, rec.contested))
     if rec.best in rec.seen_once:
         return f"seen once: {rec.best}"
     if rec.blind:
@@ -618,6 +652,14 @@ def undecided_reason(rec: Recognition) -> str:
 
 
 def _unknown_message(rec: Recognition) -> str:
+    if rec.status == "undecided" and rec.contested == (rec.best,):
+        return (f"the motion is skill {rec.best}, but that skill was taught under more than one task name "
+                "(LibraryConfig.mixed_task_share): the library does not act on it; teach the tasks with motions "
+                "that differ, or check the names")
+    if rec.status == "undecided" and rec.contested:
+        return (f"the motion is skill {rec.best}, but skill(s) {', '.join(map(str, rec.contested))}, taught as "
+                "other tasks, lie about as near (LibraryConfig.other_task_reach): the human motion does not tell "
+                "these tasks apart; the library does not act on it")
     if rec.status == "undecided" and rec.blind:
         return (f"the motion's beginning fits skill {rec.best}, but skill(s) {', '.join(map(str, rec.blind))} cannot "
                 "be ruled out yet (they do not recognize their own beginnings this early): observe more")

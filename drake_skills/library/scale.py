@@ -90,6 +90,11 @@ class Cluster:
         Of that weight, the part whose beginning the component's prefix test rejected
         (``0 <= missed <= tested``). A component that misses its own beginnings cannot be
         ruled out from a beginning (:func:`beginning_blind`).
+    tasks : tuple of (str, float)
+        The task names its member demonstrations were taught under (``Demonstration.task``) with their
+        weight, sorted by name (demonstrations without a name have none): taught as one task, a skill
+        answers; taught as several, the library does not act on it
+        (``LibraryConfig.mixed_task_share``).
     pending : array, shape (B,)
         The outcome (1 missed, 0 explained, NaN none) of the cluster's first demonstration's
         beginnings tested, when it made a new component, against the component nearest to it:
@@ -106,19 +111,21 @@ class Cluster:
     tested: np.ndarray = field(default_factory=_no_beginnings)
     missed: np.ndarray = field(default_factory=_no_beginnings)
     pending: np.ndarray = field(default_factory=_no_pending)
+    tasks: tuple = ()
 
     @classmethod
     def of_sample(cls, w: np.ndarray, duration: float, path_length: float, support: float = 1.0,
-                  missed: np.ndarray | None = None, pending: np.ndarray | None = None) -> "Cluster":
+                  missed: np.ndarray | None = None, pending: np.ndarray | None = None,
+                  task: str | None = None) -> "Cluster":
         """One demonstration with weights ``w`` (d,) (its beginnings' test, see :meth:`add`; ``pending``: see
-        the attribute)."""
+        the attribute; ``task``: its task name, None: none)."""
         w = np.array(w, dtype=float)
         tested, miss = _recorded(_no_beginnings(), _no_beginnings(), float(support), missed)
         pend = _no_pending() if pending is None else np.array(pending, dtype=float)
         if pend.shape != tested.shape:
             raise ValueError(f"a pending test of beginnings has shape {pend.shape}, expected {tested.shape}")
         return cls(float(support), w, np.zeros((w.shape[0], 0)), float(duration), float(path_length), tested, miss,
-                   pend)
+                   pend, with_task((), task, float(support)))
 
     @property
     def scatter(self) -> np.ndarray:
@@ -126,11 +133,12 @@ class Cluster:
         return self.factor @ self.factor.T
 
     def add(self, w: np.ndarray, lam: float, duration: float, path_length: float,
-            missed: np.ndarray | None = None) -> tuple["Cluster", np.ndarray]:
+            missed: np.ndarray | None = None, task: str | None = None) -> tuple["Cluster", np.ndarray]:
         """The cluster with ``w`` added at weight ``lam`` (Eqs. 6-8 with the exact running moments).
 
         ``missed`` (B,): whether the component's prefix test rejected the demonstration's
         beginning at each of ``BEGINNING_FRACTIONS`` (1 or 0; NaN: not tested); None: none tested.
+        ``task``: the demonstration's task name (counted at weight ``lam``); None: none.
 
         Returns the new cluster and the scatter increment's factor column
         ``g`` (d,), with ``S_new = S + g g^T``.
@@ -154,7 +162,7 @@ class Cluster:
         dur = self.duration + gamma * (duration - self.duration)
         path = self.path_length + gamma * (path_length - self.path_length)
         tested, miss = _recorded(self.tested, self.missed, lam, missed)
-        return Cluster(s, mean, factor, dur, path, tested, miss, self.pending), g
+        return Cluster(s, mean, factor, dur, path, tested, miss, self.pending, with_task(self.tasks, task, lam)), g
 
     def pool(self, other: "Cluster") -> tuple["Cluster", np.ndarray]:
         """The union of two clusters (moment matching; the corrected Eq. 11).
@@ -173,7 +181,36 @@ class Cluster:
         # each side's pending first test joins the record: the two are one skill now (weight 1: one demonstration)
         tested, missed = _recorded(self.tested + other.tested, self.missed + other.missed, 1.0, self.pending)
         tested, missed = _recorded(tested, missed, 1.0, other.pending)
-        return Cluster(s, mean, factor, dur, path, tested, missed), g
+        return Cluster(s, mean, factor, dur, path, tested, missed, tasks=pooled_tasks(self.tasks, other.tasks)), g
+
+
+def with_task(tasks: tuple, task: str | None, weight: float) -> tuple:
+    """``tasks`` ((name, weight) pairs sorted by name) with ``weight`` more of ``task`` (None: unchanged)."""
+    if task is None:
+        return tasks
+    d = dict(tasks)
+    d[str(task)] = d.get(str(task), 0.0) + float(weight)
+    return tuple(sorted(d.items()))
+
+
+def pooled_tasks(a: tuple, b: tuple) -> tuple:
+    """The task weights of two clusters together."""
+    d = dict(a)
+    for name, weight in b:
+        d[name] = d.get(name, 0.0) + weight
+    return tuple(sorted(d.items()))
+
+
+def mixed_share(tasks: tuple) -> float:
+    """The share of a cluster's task weight that is not its main task's (0 with one task or none)."""
+    weights = [w for _, w in tasks]
+    total = sum(weights)
+    return (total - max(weights)) / total if total > 0 else 0.0
+
+
+def main_task(tasks: tuple) -> str | None:
+    """The task with the most weight (None without tasks; of equal weights the first name)."""
+    return max(tasks, key=lambda t: t[1])[0] if tasks else None
 
 
 def beginning_blind(tested: np.ndarray, missed: np.ndarray, shares: np.ndarray) -> np.ndarray:

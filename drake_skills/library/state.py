@@ -86,6 +86,12 @@ def _check_cluster(cl, d: int, what: str, *, arrays: bool = True) -> None:
     if pend.shape != (B,) or ((pend < 0) | (pend > 1)).any():
         raise ValueError(f"{what} has a bad pending test of beginnings ({pend.tolist()}): {B} outcomes in [0, 1] "
                          "or NaN")
+    if not isinstance(cl.tasks, tuple) or not all(
+            isinstance(t, tuple) and len(t) == 2 and isinstance(t[0], str) and isinstance(t[1], float)
+            and math.isfinite(t[1]) and t[1] >= 0 for t in cl.tasks) \
+            or sum(w for _, w in cl.tasks) > cl.support * (1 + 1e-9) + 1e-9:
+        raise ValueError(f"{what} has bad task weights ({cl.tasks!r:.80}): (name, weight >= 0) pairs summing to at "
+                         "most its support")
 
 
 @dataclass(frozen=True, eq=False)

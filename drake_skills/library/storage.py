@@ -101,7 +101,17 @@ def _cluster_meta(cl: Cluster) -> dict:
             "rank": int(cl.factor.shape[1]), "beginnings": {"tested": [float(x) for x in cl.tested],
                                                            "missed": [float(x) for x in cl.missed],
                                                            "pending": [None if not math.isfinite(x) else float(x)
-                                                                       for x in cl.pending]}}
+                                                                       for x in cl.pending]},
+            "tasks": {name: float(weight) for name, weight in cl.tasks}}
+
+
+def _tasks(meta: dict) -> tuple:
+    """A cluster's task names and weights from its metadata (optional key: files written before it have none)."""
+    t = meta.get("tasks", {})
+    if not isinstance(t, dict) or not all(isinstance(k, str) and type(v) in (int, float) and math.isfinite(v)
+                                          and v >= 0 for k, v in t.items()):
+        raise ValueError(f"tasks must map task names to weights >= 0, got {t!r:.80}")
+    return tuple(sorted((k, float(v)) for k, v in t.items()))
 
 
 def _beginnings(meta: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -428,6 +438,8 @@ def _state_of(meta: dict, version: int, arrays, where: str) -> LibraryState:
         cfg_meta.setdefault("split_within_share", 1.0)  # optional key: a file written before it split on distance alone
         cfg_meta.setdefault("keep_single_demos_apart", False)  # optional key: a file written before it merged them
         cfg_meta.setdefault("skip_false_starts", False)  # optional key: a file written before it read motions whole
+        cfg_meta.setdefault("mixed_task_share", 1.0)  # optional key: a file written before it kept no task names
+        cfg_meta.setdefault("other_task_reach", 0.0)  # optional key: likewise
         config = LibraryConfig.from_dict(cfg_meta)
         comps_meta = list(meta["components"])
         dim_h, dim_r = meta["dim_human"], meta["dim_robot"]
@@ -477,7 +489,7 @@ def _state_of(meta: dict, version: int, arrays, where: str) -> LibraryState:
             f = a["factors"][:, col:col + ranks[i]]
             col += ranks[i]
             cluster = Cluster(float(cm["support"]), a["means"][i], f, float(cm["duration"]), float(cm["path_length"]),
-                              *_beginnings(cm))
+                              *_beginnings(cm), _tasks(cm))
             subs = []
             if not isinstance(cm["subclusters"], list) or len(cm["subclusters"]) != 2:
                 raise ValueError(f"component {i} needs two sub-cluster entries")
@@ -489,7 +501,7 @@ def _state_of(meta: dict, version: int, arrays, where: str) -> LibraryState:
                 sf = a["sub_factors"][:, sub_col:sub_col + r]
                 sub_col += r
                 subs.append(Cluster(float(sm["support"]), a["sub_means"][i, j], sf, float(sm["duration"]),
-                                    float(sm["path_length"]), *_beginnings(sm)))
+                                    float(sm["path_length"]), *_beginnings(sm), _tasks(sm)))
             comps.append(ComponentState(_int(cm["id"], f"component {i} id"), _int(cm["age"], f"component {i} age"),
                                         cluster, tuple(subs)))
         scale = SharedScale(_int(scale_meta["n"], "scale n"), a["total_mean"], a["total_m2"], a["pooled"],

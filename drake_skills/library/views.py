@@ -217,6 +217,12 @@ class Recognition:
     #: ``LibraryConfig.skip_false_starts``); pass it on to :meth:`SkillLibrary.predict_robot` and
     #: ``estimate_phase`` with a component of your choice (``restart=i``).
     restart: int | None = None
+    #: Why a motion one skill explains is "undecided" by the task names it was taught under
+    #: (``Cluster.tasks``): ``(best,)`` when that skill was taught under more than one task name
+    #: (``LibraryConfig.mixed_task_share``), else the ids of the skills taught as another task that lie
+    #: near it (``LibraryConfig.other_task_reach``). The teacher called these motions different tasks, so
+    #: acting on one could be the wrong one. Empty otherwise.
+    contested: tuple[int, ...] = ()
 
     @property
     def unknown(self) -> bool:

@@ -173,6 +173,10 @@ def test_a_beginning_one_skill_explains_is_undecided_while_a_blind_skill_cannot_
     items[row1] = ComponentModel(c.id, c.created, same, c.subclusters)
     same_lib = SkillLibrary.from_state(blind_lib.state())
     same_lib._components = Components.of(items, lib.n_human)
+    # ... unless it was taught as another task (the demonstrations carry their task names): the block stands
+    assert same_lib.recognize(part).status == "undecided"
+    items[row1] = ComponentModel(c.id, c.created, replace(same, tasks=items[1 - row1].cluster.tasks), c.subclusters)
+    same_lib._components = Components.of(items, lib.n_human)
     assert same_lib.recognize(part).component == k0
     # the skill's own record blocks nothing for itself
     assert _with_record(lib, 1 - row1, 1.0).recognize(part).component == k0

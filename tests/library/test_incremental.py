@@ -637,7 +637,10 @@ def test_library_state_rejects_inconsistent_components():
         bad = replace(c0.cluster, mean=c0.cluster.mean[:-1])
         replace(state, components=(replace(c0, cluster=bad, subclusters=(bad, None)),))
     with pytest.raises(ValueError, match="sub-clusters"):
-        replace(state, components=(replace(c0, subclusters=(replace(c0.cluster, support=0.5), None)),))
+        replace(state, components=(replace(c0, subclusters=(replace(c0.cluster, support=0.5, tasks=()), None)),))
+    with pytest.raises(ValueError, match="bad task weights"):
+        heavy = replace(c0.cluster, tasks=(("0", c0.cluster.support + 1.0),))
+        replace(state, components=(replace(c0, cluster=heavy, subclusters=(heavy, None)),))
     with pytest.raises(ValueError, match="age"):
         replace(state, components=(replace(c0, age=state.n_seen + 5),))
     with pytest.raises(ValueError, match="shared scale"):
