@@ -126,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
                                                  f"read from sample {rec.restart}: a false start before it"),
                "component": comp, "task": votes.label_of(comp), "nearest": rec.ids[near],
                "d2": float(rec.mahalanobis_sq[near]), "dof": int(rec.dof if np.ndim(rec.dof) == 0 else rec.dof[near]),
-               "confidence": rec.confidence, "restart": rec.restart}
+               "confidence": rec.confidence, "restart": rec.restart, "contested": list(rec.contested)}
         if comp is not None and lib.has_robot:
             mean, cov = lib.predict_robot(human, args.fraction, workspace=ws, component=comp, restart=rec.restart)
             duration = lib.component(comp).duration
