@@ -237,3 +237,71 @@ def test_the_reach_holds_only_once_the_scale_is_more_data_than_prior():
         items[r1] = ComponentModel(c1.id, c1.created, replace(c1.cluster, mean=mean), c1.subclusters)
         lib._components = Components.of(items, h)
         assert lib._contested(r0) == ((c1.id,) if contested else ()), dof
+
+
+def _placed(base, factor, *, config=None, dof=None, keep=None, best_tasks=None):
+    """A copy of ``base`` (three skills named a, b, c) with skill b's component at ``factor`` merge limits (two-sample
+    distance) of skill a's; ``config``/``dof`` replace the library's; ``keep``: only these rows of (a, b); ``best_tasks``
+    replaces a's task weights. Returns (library, row of a, id of b)."""
+    from drake_skills.library.algorithm import ComponentModel, Components
+    from drake_skills.library.novelty import chi2_ppf
+
+    lib = SkillLibrary.from_state(replace(base.state(), config=config or base.config))
+    if dof is not None:
+        lib._scale = replace(base._scale, dof=dof)
+    items = list(lib._components.items)
+    r0 = next(i for i in range(len(items)) if main_task(items[i].cluster.tasks) == "a")
+    r1 = next(i for i in range(len(items)) if main_task(items[i].cluster.tasks) == "b")
+    h = lib.n_human
+    metric = lib._metric()
+    inflate = 1.0 / items[r0].support + 1.0 / items[r1].support
+    z1 = metric.whiten(items[r0].cluster.mean[:h]) + np.eye(h)[0] * np.sqrt(
+        factor * chi2_ppf(lib.config.merge_quantile, h) * inflate)
+    c1 = items[r1]
+    mean = c1.cluster.mean.copy()
+    mean[:h] = metric.chol @ z1
+    items[r1] = ComponentModel(c1.id, c1.created, replace(c1.cluster, mean=mean), c1.subclusters)
+    if best_tasks is not None:
+        c0 = items[r0]
+        items[r0] = ComponentModel(c0.id, c0.created, replace(c0.cluster, tasks=best_tasks), c0.subclusters)
+    if keep:
+        items = [items[r0], items[r1]]
+        r0 = 0
+    lib._components = Components.of(items, h)
+    return lib, r0, c1.id
+
+
+def test_the_reach_is_a_multiple_of_the_merge_limit_below_one_too():
+    """other_task_reach 0.5: a skill taught as another task at 0.4 merge limits contests the answer, at 0.6 it does not."""
+    base = _library(("a", "b", "c"))
+    cfg = replace(base.config, other_task_reach=0.5)
+    for factor, contested in ((0.4, True), (0.6, False)):
+        lib, r0, k1 = _placed(base, factor, config=cfg)
+        assert lib._contested(r0) == ((k1,) if contested else ()), factor
+
+
+def test_the_reach_holds_in_a_library_of_two_skills():
+    base = _library(("a", "b", "c"))
+    lib, r0, k1 = _placed(base, 1.5, keep=True)
+    assert len(lib._components) == 2
+    assert lib._contested(r0) == (k1,)
+
+
+def test_the_reach_holds_from_the_pooled_dof_equal_to_the_prior_strength():
+    base = _library(("a", "b", "c"))
+    assert base._scale.dof > base.config.prior_strength
+    lib, r0, k1 = _placed(base, 1.5, dof=float(base.config.prior_strength))
+    assert lib._contested(r0) == (k1,)
+
+
+def test_a_skill_taught_without_a_name_is_never_contested_by_named_neighbours():
+    """No name on the best skill: nothing says its neighbours answer differently (nor that it is mixed)."""
+    base = _library(("a", "b", "c"))
+    lib, r0, _ = _placed(base, 1.5, best_tasks=())
+    assert lib._contested(r0) == ()
+
+
+def test_the_mixed_share_is_relative_to_the_weight_whatever_its_total():
+    assert mixed_share((("a", 0.3), ("b", 0.2))) == pytest.approx(0.4)      # a total below one (fractional responsibilities)
+    assert mixed_share((("a", 3.0), ("b", 1.0))) == pytest.approx(0.25)
+    assert mixed_share((("a", 0.0), ("b", 0.0))) == 0.0
