@@ -156,11 +156,11 @@ def load_csv(path: str | Path) -> Demonstration:
             raise ValueError(f"{where}: line {r}, column '{bad}' is not a number") from None
     kw = {}
     for c, i in labels.items():
-        vals = {row[i] for row in rows[1:]}
+        vals = {row[i].strip() for row in rows[1:]}  # spaces around a label are not part of it
         if len(vals) > 1:
             raise ValueError(f"{where}: column '{c}' must hold one value, has {sorted(vals)[:3]}")
-        if vals:
-            kw[c] = vals.pop()
+        if vals and (v := vals.pop()):  # an empty label is no label
+            kw[c] = v
     n_h = len(human)
     return Demonstration(t=values[:, 0], human=values[:, 1:1 + n_h],
                          robot=values[:, 1 + n_h:] if robot else None, name=str(path), **kw)

@@ -165,7 +165,7 @@ class LibraryConfig:
     log_T_nov: float = -60.0
     #: A skill whose demonstrations were taught under more than one task name (``Demonstration.task``),
     #: the names other than its main one holding at least this share of its (responsibility-weighted)
-    #: demonstrations, is not acted on: recognition answers "undecided" (``Recognition.mixed``), and a
+    #: demonstrations, is not acted on: recognition answers "undecided" (``Recognition.contested``), and a
     #: skill taught as another task never counts as answering like the best one. Where tasks cannot be
     #: told apart from the human motion, the library merges them and executed one task's response for
     #: the other's motions: buetepage_hr with one task's human motions given to another (three such

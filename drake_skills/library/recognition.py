@@ -206,7 +206,7 @@ class RecognitionMixin:
         else:
             status, comp = "undecided", None
         contested = ()
-        if status == "skill" and isinstance(self._rule, Chi2Rule):
+        if status == "skill":
             contested = self._contested(best)
             if contested:
                 status, comp = "undecided", None   # the teacher named these differently: not acted on
@@ -231,14 +231,16 @@ class RecognitionMixin:
         itself when it was taught as several tasks (``mixed_task_share``), or the components taught as another
         task whose means lie within ``other_task_reach`` times the merge limit of its (two-sample distance under
         the shared metric: fragments of one motion lie so close), once the shared scale is more data than prior
-        (pooled dof ``nu >= prior_strength``). Empty without task names."""
+        (pooled dof ``nu >= prior_strength``; a chi-square library only: the reach is in its merge limits).
+        Empty without task names."""
         cfg = self.config
         comps = self._components
         tasks = comps.items[best].cluster.tasks
         if mixed_share(tasks) >= cfg.mixed_task_share:
             return (comps.ids[best],)
         task = main_task(tasks)
-        if task is None or not cfg.other_task_reach > 0 or len(comps) < 2 or self._scale.dof < cfg.prior_strength:
+        if (task is None or not cfg.other_task_reach > 0 or len(comps) < 2 or not isinstance(self._rule, Chi2Rule)
+                or self._scale.dof < cfg.prior_strength):
             return ()  # (while the scale is more prior than data every pair lies near: skills seen once, the rule
             #           of single_demo_quantile, keep a young library safe)
         d2 = two_sample_d2(self._whitened_means(), comps.support, best)
@@ -262,8 +264,11 @@ class RecognitionMixin:
         out = np.zeros(len(comps), bool)
         out[best] = True
         others = idx[idx != best]
+        cfg = self.config
         task = main_task(comps.items[best].cluster.tasks)
-        if task is not None:  # a component taught as another task does not answer like it, whatever its response
+        if task is not None and (cfg.mixed_task_share < 1 or cfg.other_task_reach > 0):
+            # a component taught as another task does not answer like it, whatever its response (the task rules
+            # on; a library with both off, as a file written before task names loads, answers as it did)
             others = np.array([j for j in others if main_task(comps.items[j].cluster.tasks) in (None, task)], int)
         if not others.size:
             return out
@@ -634,8 +639,10 @@ def undecided_reason(rec: Recognition) -> str:
 
     "seen once: k": the most probable component ``k`` was learned from one demonstration and the
     motion lies beyond its stricter limit (``Recognition.seen_once``); "blind: j, ...": the beginning
-    fits, but those components miss their own beginnings there (``Recognition.blind``); "between a
-    and b": the two most probable components, neither ``1 - decision_risk`` probable.
+    fits, but those components miss their own beginnings there (``Recognition.blind``); "taught as
+    several tasks: k" and "k lies near skills taught as other tasks: j, ..." (``Recognition.contested``,
+    ``LibraryConfig.mixed_task_share`` and ``other_task_reach``); "between a and b": the two most
+    probable components, neither ``1 - decision_risk`` probable.
     """
     if rec.status != "undecided":
         return ""

@@ -209,8 +209,10 @@ def mixed_share(tasks: tuple) -> float:
 
 
 def main_task(tasks: tuple) -> str | None:
-    """The task with the most weight (None without tasks; of equal weights the first name)."""
-    return max(tasks, key=lambda t: t[1])[0] if tasks else None
+    """The task with the most weight (None without tasks or with no positive weight; of equal weights the first
+    name)."""
+    named = [t for t in tasks if t[1] > 0]
+    return max(named, key=lambda t: t[1])[0] if named else None
 
 
 def beginning_blind(tested: np.ndarray, missed: np.ndarray, shares: np.ndarray) -> np.ndarray:

@@ -453,7 +453,7 @@ def _state_of(meta: dict, version: int, arrays, where: str) -> LibraryState:
         if with_ws is not None and not isinstance(with_ws, bool):
             raise ValueError(f"trained_with_workspace must be true, false or null, got {with_ws!r}")
         gain = _gain_of(meta.get("gain"), config.n_basis_robot)  # optional: older files read as None (Eq. 13)
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
         raise ValueError(f"{where}: bad metadata ({type(exc).__name__}: {exc})") from None
     K = len(comps_meta)
     if dims[0] is None:
@@ -476,7 +476,7 @@ def _state_of(meta: dict, version: int, arrays, where: str) -> LibraryState:
         sub_ranks = [_int(s["rank"], f"component {i} sub-cluster rank")
                      for i, c in enumerate(comps_meta) for s in c["subclusters"] if s is not None]
         scale_meta = meta["scale"]
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
         raise ValueError(f"{where}: bad component metadata ({type(exc).__name__}: {exc})") from None
     if any(r > d for r in ranks + sub_ranks):
         raise ValueError(f"{where}: a scatter factor of rank above {d} (the number of weights)")
@@ -506,7 +506,7 @@ def _state_of(meta: dict, version: int, arrays, where: str) -> LibraryState:
                                         cluster, tuple(subs)))
         scale = SharedScale(_int(scale_meta["n"], "scale n"), a["total_mean"], a["total_m2"], a["pooled"],
                             float(scale_meta["dof"]), float(scale_meta.get("fit_m2", 0.0)))
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
         raise ValueError(f"{where}: component metadata is bad ({type(exc).__name__}: {exc})") from None
     if not np.allclose(scale.pooled, scale.pooled.T, rtol=1e-9, atol=1e-12):
         raise ValueError(f"{where}: the pooled scatter is not symmetric")
@@ -565,7 +565,7 @@ def _load_dense(where, config, dims, next_id, n_seen, history, comps_meta, array
             comps.append(ComponentState(_int(cm["id"], f"component {i} id"), max(1, _int(cm["age"], "age")),
                                         cl, (cl, None)))
             supports.append(s)
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
         raise ValueError(f"{where}: {exc}") from None
     if comps:
         s = np.array(supports)

@@ -174,3 +174,12 @@ def test_complex_samples_are_refused_not_cast():
     """numpy would drop the imaginary part with a warning; a demonstration refuses them."""
     with pytest.raises(ValueError, match="^demo 'c': human is complex; give real numbers$"):
         Demonstration(np.linspace(0, 1, 10), np.zeros((10, 3)) + 1j, name="c")
+
+
+def test_csv_labels_are_stripped_and_an_empty_label_is_none(tmp_path):
+    path = save_csv(_demo(), tmp_path / "d.csv")
+    lines = path.read_text().splitlines()
+    body = [",".join(r.split(",")[:-2] + [" bowl ", ""]) for r in lines[1:]]
+    (tmp_path / "e.csv").write_text("\n".join([lines[0]] + body) + "\n")
+    back = load_csv(tmp_path / "e.csv")
+    assert (back.task, back.subject) == ("bowl", None)

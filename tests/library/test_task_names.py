@@ -5,7 +5,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from drake_skills import Demonstration, LibraryConfig, SkillLibrary
+from drake_skills import LibraryConfig, SkillLibrary
 from drake_skills.library.recognition import undecided_reason
 from drake_skills.library.scale import Cluster, main_task, mixed_share, pooled_tasks, with_task
 from drake_skills.library.views import UnknownSkillError
@@ -29,6 +29,7 @@ def test_task_weights_are_a_moment_of_the_cluster():
     assert mixed_share((("a", 2.0),)) == 0.0
     assert main_task(c.tasks) == "tomato" and main_task(()) is None
     assert main_task((("a", 1.0), ("b", 1.0))) == "a"                        # a tie: the first name
+    assert main_task((("a", 0.0),)) is None and main_task((("a", 0.0), ("b", 0.5))) == "b"  # no weight, no name
 
 
 def _library(tasks, *, names=True, seed=0, **cfg):
@@ -70,8 +71,11 @@ def test_a_skill_taught_under_two_names_is_undecided_and_says_why():
     assert undecided_reason(rec) == f"taught as several tasks: {k0}"
     with pytest.raises(UnknownSkillError, match="taught under more than one task name"):
         lib.predict_robot(q[0].human)
-    for f in (None, 0.6):                                                   # beginnings too
-        assert lib.recognize(q[0].human[:80], observed_fraction=f).status != "skill"
+    # beginnings too: undecided for the names where the phase is searched; at 0.6 of the path the prefix
+    # (80 of 100 samples) fits no skill's first 60 %
+    assert lib.recognize(q[0].human[:80]).status == "undecided"
+    assert lib.recognize(q[0].human[:80]).contested == (k0,)
+    assert lib.recognize(q[0].human[:80], observed_fraction=0.6).status == "unknown"
     for k in (1, 2):
         r = lib.recognize(q[k].human, observed_fraction=1.0)
         assert r.status == "skill" and r.contested == ()
@@ -119,6 +123,10 @@ def test_a_skill_taught_as_another_task_does_not_answer_like_the_best_one():
                                       c.subclusters)
         lib._components = Components.of(items, lib.n_human)
         assert bool(lib._same_response(best, cand)[other]) == pooled, tasks
+        # both task rules off (as a file written before task names loads): the names say nothing, the response does
+        off = SkillLibrary.from_state(replace(lib.state(), config=replace(lib.config, mixed_task_share=1.0,
+                                                                           other_task_reach=0.0)))
+        assert bool(off._same_response(best, cand)[other]), tasks
 
 
 def test_task_weights_survive_a_file_and_a_file_without_them_loads_with_none_and_the_rule_off(tmp_path):
@@ -137,16 +145,29 @@ def test_task_weights_survive_a_file_and_a_file_without_them_loads_with_none_and
         for s in c["subclusters"]:
             if s is not None:
                 s.pop("tasks")
-    del meta["config"]["mixed_task_share"]
+    del meta["config"]["mixed_task_share"], meta["config"]["other_task_reach"]
     arrays["metadata"] = np.array(json.dumps(meta))
     np.savez(tmp_path / "old.npz", **arrays)
     old = SkillLibrary.load(tmp_path / "old.npz")
-    assert all(c.cluster.tasks == () for c in old._components.items) and old.config.mixed_task_share == 1.0
+    assert all(c.cluster.tasks == () for c in old._components.items)
+    assert (old.config.mixed_task_share, old.config.other_task_reach) == (1.0, 0.0)
+    # it answers as the same library did before task names: the mixed skill is acted on
+    unnamed = _library((_taught_as_two, "b", "c"), names=False, mixed_task_share=1.0, other_task_reach=0.0)
+    for k in range(3):
+        q = synthetic_demo(k, np.random.default_rng(50 + k)).human
+        a, b = old.recognize(q, observed_fraction=1.0), unnamed.recognize(q, observed_fraction=1.0)
+        assert (a.status, a.component) == (b.status, b.component) and a.status == "skill", k
+        np.testing.assert_allclose(a.posterior, b.posterior, rtol=1e-9, atol=1e-12)
     meta["components"][0]["tasks"] = {"a": -1.0}
     arrays["metadata"] = np.array(json.dumps(meta))
     np.savez(tmp_path / "bad.npz", **arrays)
     with pytest.raises(ValueError, match="tasks must map task names to weights >= 0"):
         SkillLibrary.load(tmp_path / "bad.npz")
+    meta["components"][0]["tasks"] = {"a": 10 ** 400}                       # an integer no float holds
+    arrays["metadata"] = np.array(json.dumps(meta))
+    np.savez(tmp_path / "huge.npz", **arrays)
+    with pytest.raises(ValueError, match=r"huge\.npz.*OverflowError"):
+        SkillLibrary.load(tmp_path / "huge.npz")
 
 
 def test_learning_is_the_same_with_and_without_task_names():
@@ -162,7 +183,10 @@ def test_config_refuses_a_share_outside_zero_one():
     for bad in (0.0, -0.1, 1.5, float("nan")):
         with pytest.raises(ValueError, match="mixed_task_share"):
             LibraryConfig(mixed_task_share=bad)
-    Demonstration  # imported for the names used above
+    for bad in (-0.1, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="other_task_reach"):
+            LibraryConfig(other_task_reach=bad)
+    assert LibraryConfig(other_task_reach=0.0).other_task_reach == 0.0     # 0: off
 
 
 def test_a_skill_with_a_skill_taught_as_another_task_near_it_is_undecided():
@@ -305,3 +329,20 @@ def test_the_mixed_share_is_relative_to_the_weight_whatever_its_total():
     assert mixed_share((("a", 0.3), ("b", 0.2))) == pytest.approx(0.4)      # a total below one (fractional responsibilities)
     assert mixed_share((("a", 3.0), ("b", 1.0))) == pytest.approx(0.25)
     assert mixed_share((("a", 0.0), ("b", 0.0))) == 0.0
+
+
+def test_a_skill_taught_under_two_names_is_not_acted_on_under_the_loglik_test_too():
+    """The mixed share holds whatever the novelty test; the reach (in merge limits of the chi-square rule) does not
+    apply to a log-likelihood library."""
+    lib = _library((_taught_as_two, "b", "c"), novelty_test="loglik")
+    q = synthetic_demo(0, np.random.default_rng(50)).human
+    assert len(lib._components) == 3
+    rec = lib.recognize(q, observed_fraction=1.0)
+    assert rec.status == "undecided" and len(rec.contested) == 1 and rec.component is None
+    assert mixed_share(lib._model(rec.contested[0]).cluster.tasks) >= 0.2
+    r = _library((_taught_as_two, "b", "c"), novelty_test="loglik", mixed_task_share=1.0).recognize(
+        q, observed_fraction=1.0)
+    assert r.status == "skill" and r.component == rec.contested[0]          # the rule off: answered
+    base = _library(("a", "b", "c"), novelty_test="loglik")
+    lib, r0, _ = _placed(base, 0.5)
+    assert lib._contested(r0) == ()                                         # no reach under loglik
