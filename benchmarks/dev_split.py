@@ -44,8 +44,10 @@ def _mean_table(tables) -> list[list]:
     return rows
 
 
-def sweep(field: str, values, *, orders: int = 4, tables=TABLES, data=None, out=sys.stdout) -> None:
-    """Print the mean ``tables`` on the development splits for ``LibraryConfig(**{field: v})``, each v."""
+def sweep(field: str, values, *, orders: int = 4, tables=TABLES, data=None, out=sys.stdout, teaching="random",
+          fixed=None) -> None:
+    """Print the mean ``tables`` on the development splits for ``LibraryConfig(**fixed, **{field: v})``, each v,
+    taught in ``teaching`` order ("random" or "row": task by task)."""
     names = {f.name for f in dataclasses.fields(LibraryConfig)}
     if field not in names:
         raise SystemExit(f"dev_split: LibraryConfig has no field {field!r}")
@@ -57,12 +59,17 @@ def sweep(field: str, values, *, orders: int = 4, tables=TABLES, data=None, out=
     splits = development_splits(train)
     default = getattr(LibraryConfig(), field)
     for v in values:
-        settings = InteractionSettings(data=path, orders=orders, library=LibraryConfig(**{field: v}), loo_orders=0)
+        settings = InteractionSettings(data=path, orders=orders, library=LibraryConfig(**{**(fixed or {}), field: v}),
+                                       loo_orders=0, teaching=teaching)
         reps = [evaluate_interaction(settings, progress=False, figures=False,
                                      context=InteractionContext.from_splits(taught, held, settings))
                 for taught, held in splits]
         is_default = v == default and isinstance(v, bool) == isinstance(default, bool)
-        print(f"\n## {field} = {v!r}{' (default)' if is_default else ''}", file=out)
+        print(f"\n## {field} = {v!r}{' (default)' if is_default else ''}"
+              + "".join(f", {k} = {x!r}" for k, x in (fixed or {}).items()) + f", taught {teaching}", file=out)
+        comps = [r.summary["components_mean"] for r in reps]
+        print(f"\ncomponents (mean over orders, per draw): {', '.join(f'{c:.2f}' for c in comps)}; "
+              f"mean {np.mean(comps):.2f}", file=out)
         for name in tables:
             t = reps[0].tables[name]
             print(f"\n{name}\n\n| " + " | ".join(t.columns) + " |\n|" + "---|" * len(t.columns), file=out)
@@ -87,9 +94,19 @@ def main(argv=None) -> int:
     ap.add_argument("--orders", type=int, default=4, help="random orders per draw (default: %(default)s)")
     ap.add_argument("--tables", default=",".join(TABLES), help="comma-separated tables (default: %(default)s)")
     ap.add_argument("--data", default=None, help="buetepage_hr.npz (default: the shared data folder)")
+    ap.add_argument("--teaching", choices=("random", "row"), default="random",
+                    help="order of the taught interactions: random, or task by task (default: %(default)s)")
+    ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
+                    help="another LibraryConfig field held at a value for every run (repeatable)")
     args = ap.parse_args(argv)
+    fixed = {}
+    for item in args.set:
+        k, sep, v = item.partition("=")
+        if not sep:
+            raise SystemExit(f"dev_split: --set takes FIELD=VALUE, got {item!r}")
+        fixed[k.strip()] = _value(v.strip())
     sweep(args.field, [_value(v) for v in args.values.split(",")], orders=args.orders,
-          tables=tuple(args.tables.split(",")), data=args.data)
+          tables=tuple(args.tables.split(",")), data=args.data, teaching=args.teaching, fixed=fixed)
     return 0
 
 

@@ -79,7 +79,16 @@ class Reference:
     def _support(self, items=None):
         return np.array([c.support for c in (self.items if items is None else items)])
 
-    def partial_fit(self, w, duration, path_length, fit_residual) -> dict:
+    def _name(self, cluster):
+        """The task a cluster was taught as: the name of most weight, None without names or if mixed."""
+        t = dict(cluster.tasks)
+        total = sum(t.values())
+        if not total > 0:
+            return None
+        top = max(sorted(t), key=lambda k: t[k])
+        return top if (total - t[top]) / total < self.cfg.mixed_task_share else None
+
+    def partial_fit(self, w, duration, path_length, fit_residual, task=None) -> dict:
         cfg, rule, h = self.cfg, self.rule, self.h
         n = self.n_seen
         scale = (self.scale if self.scale is not None else SharedScale.empty(w.shape[0])).count(w, fit_residual)
@@ -96,9 +105,11 @@ class Reference:
                 if c.support < 1.5 and cfg.novelty_test == "chi2" and cfg.single_demo_quantile < 1 \
                         and scale.dof < cfg.prior_strength and d2[k] > chi2_ppf(cfg.single_demo_quantile, h):
                     fits[k] = False
+                if task is not None and cfg.keep_tasks_apart and self._name(c.cluster) not in (None, task):
+                    fits[k] = False  # taught as another task
             novel = not fits.any()
         if novel:
-            cl = Cluster.of_sample(w, duration, path_length)
+            cl = Cluster.of_sample(w, duration, path_length, task=task)
             items.append(ComponentModel(next_id, n, cl, (cl, None)))
             out["created"].append(next_id)
             next_id += 1
@@ -112,19 +123,19 @@ class Reference:
             old = list(items)
             for i in np.flatnonzero(lam >= 1e-3):
                 c, v = old[i], float(lam[i])
-                cluster, g = c.cluster.add(w, v, duration, path_length)
+                cluster, g = c.cluster.add(w, v, duration, path_length, task=task)
                 scale = scale.with_scatter(g, +1.0, v)
                 a, b = c.subclusters
                 if b is None:
-                    j, b = 1, Cluster.of_sample(w, duration, path_length, support=v)
+                    j, b = 1, Cluster.of_sample(w, duration, path_length, support=v, task=task)
                 else:
                     da = a.mean[:h] @ Linv.T - zw
                     db = b.mean[:h] @ Linv.T - zw
                     j = int(db @ db < da @ da)
                     if j == 0:
-                        a = a.add(w, v, duration, path_length)[0]
+                        a = a.add(w, v, duration, path_length, task=task)[0]
                     else:
-                        b = b.add(w, v, duration, path_length)[0]
+                        b = b.add(w, v, duration, path_length, task=task)[0]
                 items[i] = ComponentModel(c.id, c.created, cluster, (a, b))
                 out["updated"].append(c.id)
                 out["subcluster"][c.id] = j
@@ -143,6 +154,12 @@ class Reference:
                 if cfg.merge_min_age > 0:
                     ages = (n + 1) - np.minimum(created, created[i])
                     d2m = np.where(ages > cfg.merge_min_age, d2m, np.inf)
+                names = [self._name(c.cluster) for c in items]
+                for j in range(len(items)):  # the teacher's names: one task merges within a wider reach, two never
+                    if names[i] is not None and names[j] == names[i]:
+                        d2m[j] /= cfg.same_task_reach
+                    elif cfg.keep_tasks_apart and None not in (names[i], names[j]):
+                        d2m[j] = np.inf
                 score = rule.merge_scores(d2m, np.maximum(support, support[i]), 1.0 / support + 1.0 / support[i],
                                           metric[2], h)
                 if cfg.novelty_test == "chi2" and cfg.single_demo_quantile < 1 and scale.dof < cfg.prior_strength:
@@ -181,6 +198,10 @@ class Reference:
             if both.any():
                 dz = (sm[:, 0] - sm[:, 1]) @ metric[1].T
                 d2s = np.where(both, np.einsum("ij,ij->i", dz, dz) / (1.0 / sa + 1.0 / np.where(both, sb, 1.0)), 0.0)
+                for k, c in enumerate(items):  # halves taught as one task: split only beyond the same reach
+                    a, b = c.subclusters
+                    if b is not None and self._name(a) is not None and self._name(a) == self._name(b):
+                        d2s[k] /= cfg.same_task_reach
                 for i in np.flatnonzero(rule.splits(d2s, h) & both):
                     c = items[int(i)]
                     a, b = c.subclusters

@@ -105,8 +105,10 @@ def test_a_wrong_answer_costs_ten_correct_ones_and_extra_components_a_little():
     folds = stratified_folds([d.task for d in demos], 2, seed=0)
     good = score_config(LibraryConfig(), demos, folds, WORKSPACE, n_orders=1)
     assert good.correct == 1.0 and good.score == pytest.approx(1.0 - EXTRA_COMPONENT_COST * max(0, good.components - 3))
-    # (mixed_task_share 1: a component taught as several tasks would otherwise be undecided, not wrong)
-    merged = score_config(LibraryConfig(prior_scale=50.0, prior_floor=50.0, mixed_task_share=1.0), demos, folds,
+    # (the names off: with keep_tasks_apart the tasks would stay apart, and a component taught as several tasks
+    # would be undecided, not wrong)
+    merged = score_config(LibraryConfig(prior_scale=50.0, prior_floor=50.0, mixed_task_share=1.0,
+                                        keep_tasks_apart=False, same_task_reach=1.0), demos, folds,
                           WORKSPACE, n_orders=1)
     assert merged.wrong > 0.3  # two of three tasks answered with the one component's label
     assert merged.score == pytest.approx(merged.correct - WRONG_COST * merged.wrong, abs=1e-9)

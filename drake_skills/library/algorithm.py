@@ -13,9 +13,14 @@
 4. merge (Eqs. 10-11): every pair whose two-sample distance
    ``|mu_i - mu_j|^2_Sigma / (1/s_i + 1/s_j)`` is below the merge threshold, the
    closest first (a component that did not change can come within it as the scale
-   moves); a merged component keeps the two it came from as its sub-clusters;
+   moves); a merged component keeps the two it came from as its sub-clusters; two components
+   taught as the same task (``Cluster.tasks``) merge within ``same_task_reach`` times the
+   threshold, and two taught as different tasks never merge (``keep_tasks_apart``; a demonstration
+   named as another task than a component's does not join it either, step 3: deviations from
+   the paper, which learns without names);
 5. split: a component whose two sub-clusters have grown apart beyond the split
-   threshold, and lie apart as two skills do rather than as two halves of one
+   threshold (``same_task_reach`` times it for halves taught as one task), and lie apart as
+   two skills do rather than as two halves of one
    (:func:`within_share`, ``LibraryConfig.split_within_share``), becomes two again (so a
    merge made on an early, too-wide scale is undone once the scale has been learned);
 6. delete outliers by age and support.
@@ -38,7 +43,8 @@ import numpy as np
 
 from drake_skills.library.novelty import NoveltyRule, chi2_ppf
 from drake_skills.promp.gaussian import logsumexp
-from drake_skills.library.scale import BEGINNING_FRACTIONS, RECORD_TESTS, Cluster, SharedScale, gating_covariance
+from drake_skills.library.scale import (BEGINNING_FRACTIONS, RECORD_TESTS, Cluster, SharedScale, gating_covariance,
+                                        main_task, mixed_share)
 from drake_skills.library.views import Responsibilities
 
 _LOG_2PI = np.log(2.0 * np.pi)
@@ -324,6 +330,23 @@ def single_demo_rule(config, scale: SharedScale, *, beginning: bool = False) -> 
     return q
 
 
+def _task_name(tasks: tuple, config) -> str | None:
+    """The task a cluster was taught as: its main task name, None without names or when other names hold
+    ``mixed_task_share`` or more of it."""
+    return main_task(tasks) if mixed_share(tasks) < config.mixed_task_share else None
+
+
+def _any_named(items) -> bool:
+    return any(c.cluster.tasks for c in items)
+
+
+def _task_names(items, config) -> np.ndarray:
+    """(K,) object array: each component's task (:func:`_task_name`), None where it has none."""
+    out = np.empty(len(items), object)
+    out[:] = [_task_name(c.cluster.tasks, config) for c in items]
+    return out
+
+
 def _young_limit(config, h: int, scale: SharedScale) -> float | None:
     """The whole-motion distance within which a young component takes a demonstration or merges (None: no limit)."""
     q = single_demo_rule(config, scale)
@@ -527,7 +550,8 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
         component's pending test (``Cluster.pending``, counted if it merges). None: no record.
     task : str, optional
         The demonstration's task name, counted in the clusters it joins at their responsibility
-        (``Cluster.tasks``); it plays no part in the update itself.
+        (``Cluster.tasks``); with ``keep_tasks_apart`` it joins no component taught as another task
+        (:func:`_task_name`), and merges follow the names (``same_task_reach``, ``keep_tasks_apart``).
     """
     h = n_human
     work = _Work(comps, h)
@@ -554,6 +578,10 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
         young_limit = _young_limit(config, h, scale)
         if young_limit is not None:
             fits &= ~((comps.support < YOUNG_SUPPORT) & (d2 > young_limit))
+        if task is not None and config.keep_tasks_apart:  # the teacher said it is another task: not one of these
+            for i in np.flatnonzero(fits):
+                name = _task_name(comps.items[i].cluster.tasks, config)
+                fits[i] = name is None or name == task
         novel = not fits.any()
     # 3. update
     if novel:
@@ -605,9 +633,14 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
         if work.bound_ref is not metric.inv_chol:
             bound *= distance_shrink(work.bound_ref, metric)
             work.bound_ref = metric.inv_chol
-        rows = np.flatnonzero(~(bound >= rule.merge_limit(work.support, metric.logdet, h)))  # NaN: scored
+        # components taught as one task merge within same_task_reach merge limits (a library without names: 1)
+        # and components taught as different tasks never merge (keep_tasks_apart); a library without names: as before
+        named = (config.same_task_reach != 1.0 or config.keep_tasks_apart) and _any_named(work.items)
+        reach = config.same_task_reach if named else 1.0
+        rows = np.flatnonzero(~(bound >= reach * rule.merge_limit(work.support, metric.logdet, h)))  # NaN: scored
         if not rows.size:
             break
+        names = _task_names(work.items, config) if named else None
         Z = metric.whiten(work.means_h)
         ids = work.ids
         best = None
@@ -618,6 +651,10 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
             if config.merge_min_age > 0:  # the paper's v_min^merge: the older of the two must be past it
                 ages = (demo_index + 1) - np.minimum(work.created, work.created[i])
                 d2m = np.where(ages > config.merge_min_age, d2m, np.inf)
+            if names is not None and names[i] is not None:
+                d2m = np.where(names == names[i], d2m / reach, d2m)
+                if config.keep_tasks_apart:
+                    d2m = np.where((names != names[i]) & (names != None), np.inf, d2m)  # noqa: E711 (elementwise)
             score = rule.merge_scores(d2m, np.maximum(work.support, work.support[i]),
                                       1.0 / work.support + 1.0 / work.support[i], metric.logdet, h)
             if young_limit is not None:  # a pair with a component seen once merges only within its limit
@@ -656,6 +693,12 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
         if both.any():
             dz = metric.whiten(work.sub_means_h[:, 0] - work.sub_means_h[:, 1])
             d2s = np.where(both, np.einsum("ij,ij->i", dz, dz) / (1.0 / sa + 1.0 / np.where(both, sb, 1.0)), 0.0)
+            if config.same_task_reach != 1.0:  # halves taught as one task split only beyond the same reach
+                for i in np.flatnonzero(both):
+                    a, b = work.items[int(i)].subclusters
+                    if _task_name(a.tasks, config) is not None and _task_name(a.tasks, config) == _task_name(
+                            b.tasks, config):
+                        d2s[i] /= config.same_task_reach
             rows = np.flatnonzero(rule.splits(d2s, h) & both)
             shares = _within_shares(work, rows, dz[rows], metric)
             for i, share in zip(rows, shares):

@@ -440,6 +440,8 @@ def _state_of(meta: dict, version: int, arrays, where: str) -> LibraryState:
         cfg_meta.setdefault("skip_false_starts", False)  # optional key: a file written before it read motions whole
         cfg_meta.setdefault("mixed_task_share", 1.0)  # optional key: a file written before it kept no task names
         cfg_meta.setdefault("other_task_reach", 0.0)  # optional key: likewise
+        cfg_meta.setdefault("same_task_reach", 1.0)  # optional key: a file written before it merged without names
+        cfg_meta.setdefault("keep_tasks_apart", False)  # optional key: likewise
         config = LibraryConfig.from_dict(cfg_meta)
         comps_meta = list(meta["components"])
         dim_h, dim_r = meta["dim_human"], meta["dim_robot"]

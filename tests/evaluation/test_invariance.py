@@ -146,9 +146,11 @@ def test_camera_noise_of_10mm_gives_no_wrong_answer_because_the_walk_adapts_to_i
     tasks = [d.task for d in interactions.test]
     wrong = {}
     for adapt in (True, False):
-        # mixed_task_share 1: the plain walk's wrong answers come from components it merges across tasks, which the
-        # default would answer "undecided" (0 wrong either way, measured): this test is about the walk
-        runs = _runs(interactions, baseline, noisy, None, adapt_to_noise=adapt, mixed_task_share=1.0)
+        # the task names off (mixed_task_share 1, keep_tasks_apart off, same_task_reach 1): the plain walk's wrong
+        # answers come from components it merges across tasks, which the defaults keep apart or answer "undecided"
+        # (0 wrong either way, measured): this test is about the walk
+        runs = _runs(interactions, baseline, noisy, None, adapt_to_noise=adapt, mixed_task_share=1.0,
+                     keep_tasks_apart=False, same_task_reach=1.0)
         wrong[adapt] = [sum(st == "skill" and lab != task for (st, lab), task in zip(dec, tasks))
                         for _, (K, ev, dec, d2) in runs]
         if adapt:

@@ -378,7 +378,7 @@ def test_of_equal_merge_scores_the_pair_of_lowest_ids_merges_whichever_row_finds
     res = float(np.mean((y - fit) ** 2))
     merged = []
     for step in range(2):
-        expect = ref.partial_fit(w, demo.duration, path, res)
+        expect = ref.partial_fit(w, demo.duration, path, res, demo.task)
         got = lib.partial_fit(demo)
         assert got.merged == expect["merged"] and got.split == expect["split"], step
         merged.append(got.merged)

@@ -15,6 +15,10 @@ from drake_skills.library.novelty import novelty_rule
 from brute_force import Reference
 
 
+#: The paper's update, task names counted but not used to learn (``same_task_reach`` 1, ``keep_tasks_apart``
+#: off): the streams of these tests are built around merges and splits of demonstrations named as different tasks.
+NAMES_OFF = dict(same_task_reach=1.0, keep_tasks_apart=False)
+
 def _stream(K, order, seed, reps=3):
     rng = np.random.default_rng(seed)
     bank = skill_bank(K, rng)
@@ -56,7 +60,7 @@ def _learn_both(demos, config=None):
             ref = Reference(lib.config, novelty_rule(lib.config), h)
         y = lib.human_samples(d.human)
         fit = lib.config.basis_human.phi_uniform(y.shape[0]) @ w[:h].reshape(d.dim_human, -1).T
-        expect = ref.partial_fit(w, d.duration, path, float(np.mean((y - fit) ** 2)))
+        expect = ref.partial_fit(w, d.duration, path, float(np.mean((y - fit) ** 2)), d.task)
         got = lib.partial_fit(d)
         for key in ("recognized", "created", "updated", "merged", "split", "deleted", "subcluster"):
             assert getattr(got, key) == expect[key], key
@@ -92,11 +96,42 @@ def test_partial_fit_matches_the_reference_through_merges_splits_and_deletions(l
     # novelty threshold gives no split here, its single-demonstration rule no early merge); the
     # comparison with the reference is what is tested.
     cfg = LibraryConfig(workspace=ws, prior_scale=0.6, delete_min_age=2, novelty_quantile=0.999,
-                        single_demo_quantile=1.0)
+                        single_demo_quantile=1.0, **NAMES_OFF)
     lib, ref = _learn_both([demos[j] for j in order], cfg)
     events = {e["event"] for e in lib.history}
     assert {"created", "merged", "split", "deleted"} <= events, events
     _assert_same_state(lib, ref)
+
+
+def test_partial_fit_matches_the_reference_with_the_names_used_to_learn(letters):
+    """The same stream with the names used (the defaults: ``same_task_reach`` 2, ``keep_tasks_apart``): the early
+    merges of different letters are not made, and the reference, which applies the two rules pair by pair, agrees at
+    every update and in the end state."""
+    demos, ws = letters
+    order = np.random.default_rng(1).permutation(len(demos))
+    stream = [demos[j] for j in order]
+    off = LibraryConfig(workspace=ws, prior_scale=0.6, delete_min_age=2, novelty_quantile=0.999,
+                        single_demo_quantile=1.0, **NAMES_OFF)
+    on = replace(off, same_task_reach=2.0, keep_tasks_apart=True)
+    lib, ref = _learn_both(stream, on)
+    _assert_same_state(lib, ref)
+    lib_off, _ = _learn_both(stream, off)
+    assert lib.history != lib_off.history, "the names must act on this stream"
+    assert all(len({t for t, _ in c.cluster.tasks}) == 1 for c in lib._components.items)   # one task each
+
+
+def test_partial_fit_matches_the_reference_where_fragments_of_one_task_merge_by_name():
+    """Five wide synthetic skills (scatter 1.5), five demonstrations each in a row, on the defaults: fragments of one
+    skill merge within the names' reach (9 merges against 6 with the names counted only; one component per skill
+    against 9); the reference agrees at every update and in the end state."""
+    rng = np.random.default_rng(1)
+    bank = skill_bank(5, rng)
+    stream = [bank.demo(int(k), rng, scatter=1.5) for k in np.repeat(np.arange(5), 5)]
+    lib, ref = _learn_both(stream, LibraryConfig())
+    _assert_same_state(lib, ref)
+    lib_off, _ = _learn_both(stream, LibraryConfig(**NAMES_OFF))
+    merges = [sum(e["event"] == "merged" for e in x.history) for x in (lib, lib_off)]
+    assert merges[0] > merges[1] and lib.n_components == 5 < lib_off.n_components, (merges, lib_off.n_components)
 
 
 def test_partial_fit_matches_the_reference_where_components_seen_once_are_held_apart(letters):
@@ -105,7 +140,7 @@ def test_partial_fit_matches_the_reference_where_components_seen_once_are_held_a
     order = np.random.default_rng(1).permutation(len(demos))
     stream = [demos[j] for j in order]
     off = LibraryConfig(workspace=ws, prior_scale=0.6, delete_min_age=2, novelty_quantile=0.999,
-                        single_demo_quantile=1.0)
+                        single_demo_quantile=1.0, **NAMES_OFF)
     lib, ref = _learn_both(stream, replace(off, single_demo_quantile=0.9))
     _assert_same_state(lib, ref)
     lib_off, _ = _learn_both(stream, off)
@@ -123,7 +158,7 @@ def test_partial_fit_matches_the_reference_where_two_components_seen_once_are_ke
     order = np.random.default_rng(2).permutation(len(demos))
     stream = [demos[j] for j in order]
     cfg = LibraryConfig(workspace=ws, prior_scale=1.0, delete_min_age=2, novelty_quantile=0.999,
-                        keep_single_demos_apart=keep)
+                        keep_single_demos_apart=keep, **NAMES_OFF)
     lib, ref = _learn_both(stream, cfg)
     _assert_same_state(lib, ref, exact=False)  # late demonstrations share a little with a second component
     other = SkillLibrary(replace(cfg, keep_single_demos_apart=not keep))
@@ -364,7 +399,7 @@ def test_fragments_of_skills_shown_in_a_row_merge_later_as_the_brute_force_refer
         y = lib.human_samples(d.human)
         h = lib.n_human
         fit = lib.config.basis_human.phi_uniform(y.shape[0]) @ w[:h].reshape(d.dim_human, -1).T
-        expect = ref.partial_fit(w, d.duration, path, float(np.mean((y - fit) ** 2)))
+        expect = ref.partial_fit(w, d.duration, path, float(np.mean((y - fit) ** 2)), d.task)
         got, again = lib.partial_fit(d), loaded.partial_fit(d)
         for key in ("created", "updated", "merged", "split", "deleted"):
             assert getattr(got, key) == expect[key] == getattr(again, key), key
@@ -385,9 +420,9 @@ def test_every_pairs_distance_is_at_least_the_smaller_of_its_two_merge_bounds(le
     demos, ws = letters
     rng = np.random.default_rng(2)
     bank = skill_bank(5, rng)
-    streams = [(LibraryConfig(workspace=ws, prior_scale=0.8), [demos[j] for j in np.random.default_rng(0).permutation(
+    streams = [(LibraryConfig(workspace=ws, prior_scale=0.8, **NAMES_OFF), [demos[j] for j in np.random.default_rng(0).permutation(
                 len(demos))]),
-               (LibraryConfig(), [bank.demo(int(k), rng, scatter=0.8) for k in np.repeat(np.arange(5), 5)])]
+               (LibraryConfig(**NAMES_OFF), [bank.demo(int(k), rng, scatter=0.8) for k in np.repeat(np.arange(5), 5)])]
     carried = splits = nearer_than_own_bound = 0
     for cfg, stream in streams:
         lib = SkillLibrary(cfg)
@@ -412,7 +447,7 @@ def test_partial_fit_matches_the_reference_where_a_split_is_held_back_by_the_wit
     within-share test they stay two components; the reference makes the same decisions at every update either
     way, and with the test the same library to the bit."""
     _, demos, _ = _stream(2, "random", seed=1, reps=120)
-    cfg = LibraryConfig(n_basis_human=5, n_basis_robot=4)
+    cfg = LibraryConfig(n_basis_human=5, n_basis_robot=4, **NAMES_OFF)
     lib, ref = _learn_both(demos, cfg)
     _assert_same_state(lib, ref)
     assert lib.n_components == 2

@@ -45,6 +45,11 @@ def _library(tasks, *, names=True, seed=0, **cfg):
     return lib
 
 
+#: Names counted, not used to learn (the paper's update): what a library did before ``keep_tasks_apart`` and
+#: ``same_task_reach``, and still does where a stream is unnamed.
+COUNTED = dict(keep_tasks_apart=False, same_task_reach=1.0)
+
+
 def _taught_as_two(rng):
     return ("bowl", "tomato")[int(rng.integers(2))]
 
@@ -61,8 +66,9 @@ def test_the_weights_follow_responsibilities_and_sum_to_each_component_support()
 
 def test_a_skill_taught_under_two_names_is_undecided_and_says_why():
     """Skill 0's demonstrations are named "bowl" or "tomato" at random (one motion, two tasks: the wrist cannot tell
-    them apart): the library does not act on it. Skills 1 and 2, named once each, answer as before."""
-    lib = _library((_taught_as_two, "b", "c"))
+    them apart), learned with the names counted only (one mixed component): the library does not act on it.
+    Skills 1 and 2, named once each, answer as before."""
+    lib = _library((_taught_as_two, "b", "c"), **COUNTED)
     q = [synthetic_demo(k, np.random.default_rng(50 + k)) for k in range(3)]
     rec = lib.recognize(q[0].human, observed_fraction=1.0)
     k0 = lib.recognize(q[0].human, observed_fraction=1.0).contested[0]
@@ -80,7 +86,7 @@ def test_a_skill_taught_under_two_names_is_undecided_and_says_why():
         r = lib.recognize(q[k].human, observed_fraction=1.0)
         assert r.status == "skill" and r.contested == ()
     # the setting off (1), or the same demonstrations without names: the skill is answered
-    for other in (_library((_taught_as_two, "b", "c"), mixed_task_share=1.0),
+    for other in (_library((_taught_as_two, "b", "c"), mixed_task_share=1.0, **COUNTED),
                   _library((_taught_as_two, "b", "c"), names=False)):
         r = other.recognize(q[0].human, observed_fraction=1.0)
         assert r.status == "skill" and r.component == k0 and r.contested == ()
@@ -130,13 +136,14 @@ def test_a_skill_taught_as_another_task_does_not_answer_like_the_best_one():
 
 
 def test_task_weights_survive_a_file_and_a_file_without_them_loads_with_none_and_the_rule_off(tmp_path):
-    lib = _library((_taught_as_two, "b", "c"))
+    lib = _library((_taught_as_two, "b", "c"), **COUNTED)
     p = lib.save(tmp_path / "lib.npz")
     back = SkillLibrary.load(p)
     for a, b in zip(lib._components.items, back._components.items):
         assert a.cluster.tasks == b.cluster.tasks
         assert [x.tasks for x in a.subclusters if x is not None] == [x.tasks for x in b.subclusters if x is not None]
-    assert back.config.mixed_task_share == 0.2
+    assert back.config.mixed_task_share == 0.2 and (back.config.same_task_reach, back.config.keep_tasks_apart) == (
+        1.0, False)                                                         # as learned: the file keeps the config
     with np.load(p, allow_pickle=False) as z:
         arrays = {k: z[k] for k in z.files}
     meta = json.loads(str(arrays["metadata"]))
@@ -145,12 +152,14 @@ def test_task_weights_survive_a_file_and_a_file_without_them_loads_with_none_and
         for s in c["subclusters"]:
             if s is not None:
                 s.pop("tasks")
-    del meta["config"]["mixed_task_share"], meta["config"]["other_task_reach"]
+    for key in ("mixed_task_share", "other_task_reach", "same_task_reach", "keep_tasks_apart"):
+        del meta["config"][key]
     arrays["metadata"] = np.array(json.dumps(meta))
     np.savez(tmp_path / "old.npz", **arrays)
     old = SkillLibrary.load(tmp_path / "old.npz")
     assert all(c.cluster.tasks == () for c in old._components.items)
     assert (old.config.mixed_task_share, old.config.other_task_reach) == (1.0, 0.0)
+    assert (old.config.same_task_reach, old.config.keep_tasks_apart) == (1.0, False)  # it learns on as it did
     # it answers as the same library did before task names: the mixed skill is acted on
     unnamed = _library((_taught_as_two, "b", "c"), names=False, mixed_task_share=1.0, other_task_reach=0.0)
     for k in range(3):
@@ -170,9 +179,9 @@ def test_task_weights_survive_a_file_and_a_file_without_them_loads_with_none_and
         SkillLibrary.load(tmp_path / "huge.npz")
 
 
-def test_learning_is_the_same_with_and_without_task_names():
-    """The names are counted, never used to learn: the same components, means and supports."""
-    a, b = _library((_taught_as_two, "b", "c")), _library((_taught_as_two, "b", "c"), names=False)
+def test_learning_is_the_same_with_and_without_task_names_when_they_are_only_counted():
+    """``COUNTED``: the names are counted, never used to learn: the same components, means and supports."""
+    a, b = _library((_taught_as_two, "b", "c"), **COUNTED), _library((_taught_as_two, "b", "c"), names=False)
     assert [c.id for c in a._components.items] == [c.id for c in b._components.items]
     for x, y in zip(a._components.items, b._components.items):
         np.testing.assert_array_equal(x.mean, y.mean)
@@ -334,13 +343,13 @@ def test_the_mixed_share_is_relative_to_the_weight_whatever_its_total():
 def test_a_skill_taught_under_two_names_is_not_acted_on_under_the_loglik_test_too():
     """The mixed share holds whatever the novelty test; the reach (in merge limits of the chi-square rule) does not
     apply to a log-likelihood library."""
-    lib = _library((_taught_as_two, "b", "c"), novelty_test="loglik")
+    lib = _library((_taught_as_two, "b", "c"), novelty_test="loglik", **COUNTED)
     q = synthetic_demo(0, np.random.default_rng(50)).human
     assert len(lib._components) == 3
     rec = lib.recognize(q, observed_fraction=1.0)
     assert rec.status == "undecided" and len(rec.contested) == 1 and rec.component is None
     assert mixed_share(lib._model(rec.contested[0]).cluster.tasks) >= 0.2
-    r = _library((_taught_as_two, "b", "c"), novelty_test="loglik", mixed_task_share=1.0).recognize(
+    r = _library((_taught_as_two, "b", "c"), novelty_test="loglik", mixed_task_share=1.0, **COUNTED).recognize(
         q, observed_fraction=1.0)
     assert r.status == "skill" and r.component == rec.contested[0]          # the rule off: answered
     base = _library(("a", "b", "c"), novelty_test="loglik")
