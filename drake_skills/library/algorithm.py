@@ -93,6 +93,16 @@ class ComponentModel:
     def mean(self) -> np.ndarray:
         return self.cluster.mean
 
+    def task_name(self, mixed_task_share: float) -> str | None:
+        """The task it was taught as (its main task name; None without names or when the other names hold
+        ``mixed_task_share`` or more of it), kept with it once computed (components are immutable)."""
+        cached = self.__dict__.get("_task_name")
+        if cached is None or cached[0] != mixed_task_share:
+            t = self.cluster.tasks
+            cached = (mixed_task_share, main_task(t) if mixed_share(t) < mixed_task_share else None)
+            object.__setattr__(self, "_task_name", cached)   # a cache of derived data; the dataclass stays frozen
+        return cached[1]
+
     def sub_within(self, h: int) -> np.ndarray:
         """(h, h): the human block of its two sub-clusters' scatters, summed (0 without a second one); what
         :func:`within_share` reads. Computed once per component (components are immutable) and kept with it,
@@ -340,13 +350,6 @@ def _any_named(items) -> bool:
     return any(c.cluster.tasks for c in items)
 
 
-def _task_names(items, config) -> np.ndarray:
-    """(K,) object array: each component's task (:func:`_task_name`), None where it has none."""
-    out = np.empty(len(items), object)
-    out[:] = [_task_name(c.cluster.tasks, config) for c in items]
-    return out
-
-
 def _young_limit(config, h: int, scale: SharedScale) -> float | None:
     """The whole-motion distance within which a young component takes a demonstration or merges (None: no limit)."""
     q = single_demo_rule(config, scale)
@@ -580,7 +583,7 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
             fits &= ~((comps.support < YOUNG_SUPPORT) & (d2 > young_limit))
         if task is not None and config.keep_tasks_apart:  # the teacher said it is another task: not one of these
             for i in np.flatnonzero(fits):
-                name = _task_name(comps.items[i].cluster.tasks, config)
+                name = comps.items[i].task_name(config.mixed_task_share)
                 fits[i] = name is None or name == task
         novel = not fits.any()
     # 3. update
@@ -637,10 +640,11 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
         # and components taught as different tasks never merge (keep_tasks_apart); a library without names: as before
         named = (config.same_task_reach != 1.0 or config.keep_tasks_apart) and _any_named(work.items)
         reach = config.same_task_reach if named else 1.0
-        rows = np.flatnonzero(~(bound >= reach * rule.merge_limit(work.support, metric.logdet, h)))  # NaN: scored
+        limit = rule.merge_limit(work.support, metric.logdet, h)
+        rows = np.flatnonzero(~(bound >= reach * limit))  # NaN: scored
         if not rows.size:
             break
-        names = _task_names(work.items, config) if named else None
+        share = config.mixed_task_share
         Z = metric.whiten(work.means_h)
         ids = work.ids
         best = None
@@ -651,10 +655,15 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
             if config.merge_min_age > 0:  # the paper's v_min^merge: the older of the two must be past it
                 ages = (demo_index + 1) - np.minimum(work.created, work.created[i])
                 d2m = np.where(ages > config.merge_min_age, d2m, np.inf)
-            if names is not None and names[i] is not None:
-                d2m = np.where(names == names[i], d2m / reach, d2m)
-                if config.keep_tasks_apart:
-                    d2m = np.where((names != names[i]) & (names != None), np.inf, d2m)  # noqa: E711 (elementwise)
+            name = work.items[i].task_name(share) if named else None
+            if name is not None:  # only pairs within reach x the largest limit can merge: their names are read
+                d2m = d2m.copy()
+                for k in np.flatnonzero(d2m < reach * limit):
+                    other = work.items[k].task_name(share)
+                    if other == name:
+                        d2m[k] /= reach
+                    elif other is not None and config.keep_tasks_apart:
+                        d2m[k] = np.inf
             score = rule.merge_scores(d2m, np.maximum(work.support, work.support[i]),
                                       1.0 / work.support + 1.0 / work.support[i], metric.logdet, h)
             if young_limit is not None:  # a pair with a component seen once merges only within its limit
@@ -693,13 +702,14 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
         if both.any():
             dz = metric.whiten(work.sub_means_h[:, 0] - work.sub_means_h[:, 1])
             d2s = np.where(both, np.einsum("ij,ij->i", dz, dz) / (1.0 / sa + 1.0 / np.where(both, sb, 1.0)), 0.0)
-            if config.same_task_reach != 1.0:  # halves taught as one task split only beyond the same reach
-                for i in np.flatnonzero(both):
-                    a, b = work.items[int(i)].subclusters
-                    if _task_name(a.tasks, config) is not None and _task_name(a.tasks, config) == _task_name(
-                            b.tasks, config):
-                        d2s[i] /= config.same_task_reach
             rows = np.flatnonzero(rule.splits(d2s, h) & both)
+            if config.same_task_reach != 1.0 and rows.size:  # halves taught as one task: only beyond the same reach
+                for i in rows:  # (the reach only shrinks d2s: the candidates are among these rows)
+                    a, b = work.items[int(i)].subclusters
+                    name = _task_name(a.tasks, config)
+                    if name is not None and name == _task_name(b.tasks, config):
+                        d2s[i] /= config.same_task_reach
+                rows = rows[rule.splits(d2s[rows], h)]
             shares = _within_shares(work, rows, dz[rows], metric)
             for i, share in zip(rows, shares):
                 c = work.items[int(i)]
