@@ -74,7 +74,10 @@ class TransferTrial:
 def task_components_trial(ctx: SaladContext, item: tuple[str, int]) -> TaskComponentsTrial:
     """Components of a one-task library across subjects (Table 3).
 
-    The same demonstrations in the same order go into the three libraries.
+    The same demonstrations in the same order go into the three libraries, without their task name: Table 3
+    counts the components a library needs for one task's motions across people, as the paper's library learns
+    them (without names); given its one name, a library merges the task's fragments by it
+    (``LibraryConfig.same_task_reach``) and counts what the teacher said rather than what the motions need.
     """
     s = ctx.settings
     task, order = item
@@ -83,7 +86,7 @@ def task_components_trial(ctx: SaladContext, item: tuple[str, int]) -> TaskCompo
     for data, ws in zip(ctx.subjects, ctx.workspaces):
         pool = data.by_task(task)
         for j in rng.permutation(len(pool))[:s.table3_per_task]:
-            demos.append(pool[j])
+            demos.append(replace(pool[j], task=None))
             personal.append(ws)
     with_ws, without_ws = SkillLibrary(s.library), SkillLibrary(s.library)
     raw = SkillLibrary(replace(s.library, subtract_start=False))
