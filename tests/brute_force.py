@@ -154,6 +154,7 @@ class Reference:
                 if cfg.merge_min_age > 0:
                     ages = (n + 1) - np.minimum(created, created[i])
                     d2m = np.where(ages > cfg.merge_min_age, d2m, np.inf)
+                raw = d2m.copy()   # the single-demonstration limit holds on the distance itself
                 names = [self._name(c.cluster) for c in items]
                 for j in range(len(items)):  # the teacher's names: one task merges within a wider reach, two never
                     if names[i] is not None and names[j] == names[i]:
@@ -164,7 +165,7 @@ class Reference:
                                           metric[2], h)
                 if cfg.novelty_test == "chi2" and cfg.single_demo_quantile < 1 and scale.dof < cfg.prior_strength:
                     for j in range(len(items)):  # a pair with a component seen once: only within its quantile
-                        if min(support[i], support[j]) < 1.5 and d2m[j] > chi2_ppf(cfg.single_demo_quantile, h):
+                        if min(support[i], support[j]) < 1.5 and raw[j] > chi2_ppf(cfg.single_demo_quantile, h):
                             score[j] = np.inf
                         if cfg.keep_single_demos_apart and max(support[i], support[j]) < 1.5:  # two seen once
                             score[j] = np.inf

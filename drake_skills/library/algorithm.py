@@ -589,7 +589,14 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
     # 3. update
     if novel:
         # its beginnings against the nearest component: they join its record if it merges (Cluster.pending)
-        pending = beginnings(int(np.argmin(d2))) if beginnings is not None and len(comps.items) else None
+        # (the nearest it may join: a component taught as another task is none of its concern, keep_tasks_apart)
+        pending = None
+        if beginnings is not None and len(comps.items):
+            apart = task is not None and config.keep_tasks_apart
+            for k in (np.argsort(d2, kind="stable") if apart else (int(np.argmin(d2)),)):
+                if not apart or comps.items[k].task_name(config.mixed_task_share) in (None, task):
+                    pending = beginnings(int(k))
+                    break
         work.append(_new_component(next_id, demo_index, w, duration, path_length, pending, task))
         created.append(next_id)
         history.append({"event": "created", "id": next_id, "demo": demo_index})
@@ -655,6 +662,7 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
             if config.merge_min_age > 0:  # the paper's v_min^merge: the older of the two must be past it
                 ages = (demo_index + 1) - np.minimum(work.created, work.created[i])
                 d2m = np.where(ages > config.merge_min_age, d2m, np.inf)
+            raw = d2m   # the single-demonstration limit below holds on the distance itself, names or not
             name = work.items[i].task_name(share) if named else None
             if name is not None:  # only pairs within reach x the largest limit can merge: their names are read
                 d2m = d2m.copy()
@@ -668,7 +676,7 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
                                       1.0 / work.support + 1.0 / work.support[i], metric.logdet, h)
             if young_limit is not None:  # a pair with a component seen once merges only within its limit
                 young = (work.support < YOUNG_SUPPORT) | (work.support[i] < YOUNG_SUPPORT)
-                score = np.where(young & (d2m > young_limit), np.inf, score)
+                score = np.where(young & (raw > young_limit), np.inf, score)
                 if config.keep_single_demos_apart and work.support[i] < YOUNG_SUPPORT:  # two seen once: never
                     score = np.where(work.support < YOUNG_SUPPORT, np.inf, score)
             j = int(np.argmin(score))

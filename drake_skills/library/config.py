@@ -171,8 +171,12 @@ class LibraryConfig:
     #: the other's motions: buetepage_hr with one task's human motions given to another (three such
     #: constructions, 10 orders) answered 16-28 % wrong, 0-2 % with this rule (undecided instead); on
     #: every clean data set it changes at most 0.3 points of the answers (RESULTS.md, "Skills taught as
-    #: several tasks"). Demonstrations without a task name count for nothing; 1 turns it off. A deviation
-    #: from the paper, which learns without task names.
+    #: several tasks"). Demonstrations without a task name count for nothing; 1 turns the rule off. The
+    #: same share says when a component has a task at all for learning (``same_task_reach``,
+    #: ``keep_tasks_apart``): a component this mixed (a stream with tasks the wrist cannot tell apart,
+    #: learned before those settings or with them off) counts as unnamed there, so it may take a
+    #: demonstration of any name and merge by distance alone. A deviation from the paper, which learns
+    #: without task names.
     mixed_task_share: float = 0.2
     #: ... nor on a skill that has a skill taught as another task near it: their means within this many
     #: times the merge limit (two-sample distance; the fragments of one task's motion lie 1-2.4 times it

@@ -1,8 +1,9 @@
 """Task labels of the components of an (unlabeled) library, for scoring and display.
 
-The library learns without labels. It keeps the task names of the demonstrations it
-absorbed with its clusters (``Cluster.tasks``, weighted by responsibility) only to refuse
-to act on a skill taught as several tasks (``LibraryConfig.mixed_task_share``); a caller
+The library keeps the task names of the demonstrations it absorbed with its clusters
+(``Cluster.tasks``, weighted by responsibility), learns with them (``LibraryConfig.same_task_reach``,
+``keep_tasks_apart``) and refuses to act on a skill taught as several tasks
+(``mixed_task_share``), but it holds no label per component; a caller
 that wants each component's label for scoring or display follows, from the returned
 ``Update``s, which tasks each component absorbed: a creation starts a vote, an update adds
 one, a merge moves the absorbed component's votes to the kept one, a deletion drops them.

@@ -266,9 +266,11 @@ class RecognitionMixin:
         others = idx[idx != best]
         cfg = self.config
         task = main_task(comps.items[best].cluster.tasks)
-        if task is not None and (cfg.mixed_task_share < 1 or cfg.other_task_reach > 0):
-            # a component taught as another task does not answer like it, whatever its response (the task rules
-            # on; a library with both off, as a file written before task names loads, answers as it did)
+        if task is not None and (cfg.mixed_task_share < 1 or cfg.other_task_reach > 0 or cfg.keep_tasks_apart
+                                 or cfg.same_task_reach != 1):
+            # a component taught as another task does not answer like it, whatever its response (the names in
+            # use; a library with every task setting off, as a file written before task names loads, answers as
+            # it did)
             others = np.array([j for j in others if main_task(comps.items[j].cluster.tasks) in (None, task)], int)
         if not others.size:
             return out

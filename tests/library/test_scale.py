@@ -423,6 +423,12 @@ def test_every_pairs_distance_is_at_least_the_smaller_of_its_two_merge_bounds(le
     streams = [(LibraryConfig(workspace=ws, prior_scale=0.8, **NAMES_OFF), [demos[j] for j in np.random.default_rng(0).permutation(
                 len(demos))]),
                (LibraryConfig(**NAMES_OFF), [bank.demo(int(k), rng, scatter=0.8) for k in np.repeat(np.arange(5), 5)])]
+    # and with the names used, where rows are picked within the reach times the limit (the stream of
+    # test_partial_fit_matches_the_reference_where_fragments_of_one_task_merge_by_name: merges by name)
+    named_rng = np.random.default_rng(1)
+    named_bank = skill_bank(5, named_rng)
+    streams.append((LibraryConfig(), [named_bank.demo(int(k), named_rng, scatter=1.5)
+                                      for k in np.repeat(np.arange(5), 5)]))
     carried = splits = nearer_than_own_bound = 0
     for cfg, stream in streams:
         lib = SkillLibrary(cfg)

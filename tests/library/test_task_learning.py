@@ -32,17 +32,19 @@ def _named(comp: ComponentState, name):
     return ComponentState(comp.id, comp.age, cl, (cl, None))
 
 
-def _pair(cfg, factor, names, *, support=3.0):
-    """Two components (ids 0, 1) of ``support`` at ``factor`` merge limits of each other (two-sample distance under
-    the library's gating covariance), far from the demonstration of :func:`_demo`, named ``names``."""
+def _pair(cfg, factor, names, *, supports=(3.0, 3.0), limit=None, scale=None):
+    """Two components (ids 0, 1) of ``supports`` at ``factor`` times ``limit`` (default: the merge limit) of each
+    other (two-sample distance under the library's gating covariance), far from the demonstration of
+    :func:`_demo`, named ``names``; ``scale``: the library's shared scale (default ``library_states.iso_scale``)."""
     w = ls.encode(cfg, _demo())
-    g = ls.library(cfg, [], dim_human=3, dim_robot=0).shared_covariance()[0, 0]
+    g = ls.library(cfg, [], dim_human=3, dim_robot=0, scale=scale).shared_covariance()[0, 0]
     u = ls.unit(np.random.default_rng(1), H)
     a = w + np.sqrt(g) * 60.0 * ls.unit(np.random.default_rng(2), H)
-    limit = chi2_ppf(cfg.merge_quantile, H)
-    b = a + u * np.sqrt(factor * limit * g * 2.0 / support)
-    comps = [_named(ls.component(i, m, support=support, age=5), n) for i, (m, n) in enumerate(zip((a, b), names))]
-    return ls.library(cfg, comps, dim_human=3, dim_robot=0, n_seen=5)
+    limit = chi2_ppf(cfg.merge_quantile, H) if limit is None else limit
+    b = a + u * np.sqrt(factor * limit * g * (1.0 / supports[0] + 1.0 / supports[1]))
+    comps = [_named(ls.component(i, m, support=s, age=5), n)
+             for i, (m, n, s) in enumerate(zip((a, b), names, supports))]
+    return ls.library(cfg, comps, dim_human=3, dim_robot=0, n_seen=5, scale=scale)
 
 
 @pytest.mark.parametrize("factor, names, merges", [
@@ -136,3 +138,56 @@ def test_config_refuses_a_reach_below_one_and_a_flag_that_is_not_a_bool():
     with pytest.raises(ValueError, match="keep_tasks_apart"):
         LibraryConfig(keep_tasks_apart="no")
     assert (LibraryConfig().same_task_reach, LibraryConfig().keep_tasks_apart) == (2.0, True)
+
+
+def test_a_component_seen_once_keeps_its_stricter_limit_whatever_the_names():
+    """While the shared scale is more prior than data, a pair with a component seen once merges only within the
+    single-demonstration quantile of the distance itself: the name widens the merge limit, not that one. The
+    scale's 1 degree of freedom is below ``prior_strength``; the supports are 1 and 3 (one young, so
+    ``keep_single_demos_apart`` plays no part); 1.5 young limits lie within 2 merge limits."""
+    cfg = LibraryConfig(**BASE)
+    scale = ls.iso_scale(H, 1.0, dof=1.0)
+    assert scale.dof < cfg.prior_strength
+    young = chi2_ppf(cfg.single_demo_quantile, H)
+    assert 1.5 * young < 2.0 * chi2_ppf(cfg.merge_quantile, H)
+    for factor, merges in ((1.5, False), (0.8, True)):
+        lib = _pair(cfg, factor, ("a", "a"), supports=(1.0, 3.0), limit=young, scale=scale)
+        assert bool(lib.partial_fit(_demo()).merged) == merges, factor
+
+
+def test_with_the_loglik_test_two_tasks_never_merge_and_one_task_does():
+    cfg = LibraryConfig(**BASE, novelty_test="loglik", log_T_nov=1e3, log_T_merge=-40.0)
+    for names, merges in ((("a", "b"), False), (("a", "a"), True), (("a", None), True)):
+        lib = _pair(cfg, 0.0, names)                                          # the same mean: merged by distance
+        assert (lib.partial_fit(_demo()).merged == ((0, 1),)) == merges, names
+
+
+@pytest.mark.parametrize("task, tested", [("b", [1]), ("a", [0]), (None, [0])])
+def test_a_novel_demonstration_s_beginnings_are_tested_against_the_nearest_component_it_may_join(task, tested):
+    """A new component keeps its beginnings' test against the nearest component (counted if they merge later):
+    for a demonstration taught as "b", the nearest it may join (component 1, unnamed, farther) rather than the
+    nearer one taught as "a" (component 0)."""
+    cfg = LibraryConfig(**BASE)
+    w = ls.encode(cfg, _demo())
+    g = ls.library(cfg, [], dim_human=3, dim_robot=0).shared_covariance()[0, 0]
+    u = ls.unit(np.random.default_rng(3), H)
+    comps = [_named(ls.component(0, w + 12.0 * np.sqrt(g) * u, support=3.0, age=5), "a"),
+             _named(ls.component(1, w + 20.0 * np.sqrt(g) * u, support=3.0, age=5), None)]
+    lib = ls.library(cfg, comps, dim_human=3, dim_robot=0, n_seen=5)
+    calls = []
+    lib._beginnings_missed = lambda path, k: calls.append(k) or np.array([0.0, 0.0])
+    step = lib.partial_fit(_demo(task))
+    assert step.created and calls == tested
+
+
+def test_a_novel_demonstration_of_a_task_no_component_may_take_tests_no_beginnings():
+    cfg = LibraryConfig(**BASE)
+    w = ls.encode(cfg, _demo())
+    g = ls.library(cfg, [], dim_human=3, dim_robot=0).shared_covariance()[0, 0]
+    comp = _named(ls.component(0, w + 12.0 * np.sqrt(g) * ls.unit(np.random.default_rng(3), H), support=3.0, age=5),
+                  "a")
+    lib = ls.library(cfg, [comp], dim_human=3, dim_robot=0, n_seen=5)
+    calls = []
+    lib._beginnings_missed = lambda path, k: calls.append(k) or np.array([0.0, 0.0])
+    assert lib.partial_fit(_demo("b")).created and calls == []
+    assert np.isnan(lib.state().components[-1].cluster.pending).all()

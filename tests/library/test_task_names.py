@@ -129,10 +129,14 @@ def test_a_skill_taught_as_another_task_does_not_answer_like_the_best_one():
                                       c.subclusters)
         lib._components = Components.of(items, lib.n_human)
         assert bool(lib._same_response(best, cand)[other]) == pooled, tasks
-        # both task rules off (as a file written before task names loads): the names say nothing, the response does
-        off = SkillLibrary.from_state(replace(lib.state(), config=replace(lib.config, mixed_task_share=1.0,
-                                                                           other_task_reach=0.0)))
-        assert bool(off._same_response(best, cand)[other]), tasks
+        # every task setting off (as a file written before task names loads): the names say nothing, the response
+        # does; with either learning setting on the names are in use and the filter holds
+        off = dict(mixed_task_share=1.0, other_task_reach=0.0, **COUNTED)
+        lib_off = SkillLibrary.from_state(replace(lib.state(), config=replace(lib.config, **off)))
+        assert bool(lib_off._same_response(best, cand)[other]), tasks
+        for on in (dict(keep_tasks_apart=True), dict(same_task_reach=2.0)):
+            lib_on = SkillLibrary.from_state(replace(lib.state(), config=replace(lib.config, **{**off, **on})))
+            assert bool(lib_on._same_response(best, cand)[other]) == pooled, (tasks, on)
 
 
 def test_task_weights_survive_a_file_and_a_file_without_them_loads_with_none_and_the_rule_off(tmp_path):
