@@ -98,7 +98,8 @@ def _split_case(cfg, factor, names):
     a = w + np.sqrt(g) * 60.0 * ls.unit(np.random.default_rng(2), H)
     b = a + ls.unit(np.random.default_rng(1), H) * np.sqrt(factor * chi2_ppf(cfg.split_quantile, H) * g * 2.0 / 3.0)
     halves = [Cluster(3.0, m, np.zeros((H, 0)), 1.0, 5.0) for m in (a, b)]
-    halves = [replace(x, tasks=() if n is None else ((n, 3.0),)) for x, n in zip(halves, names)]
+    halves = [replace(x, tasks=() if n is None else n if isinstance(n, tuple) else ((n, 3.0),))
+              for x, n in zip(halves, names)]
     whole, _ = halves[0].pool(halves[1])
     return ls.library(cfg, [ComponentState(0, 5, whole, tuple(halves))], dim_human=3, dim_robot=0, n_seen=5)
 
@@ -109,6 +110,9 @@ def _split_case(cfg, factor, names):
     (1.5, ("a", "a"), True, True),     # names counted only: the split limit
     (1.5, (None, None), False, True),
     (1.5, ("a", None), False, True),
+    # a half taught as "a" with other names holding mixed_task_share (0.2, exactly) or more has no task
+    (1.5, ("a", (("a", 2.0), ("b", 0.5))), False, True),
+    (1.5, ("a", (("a", 2.5), ("b", 0.5))), False, False),   # 1/6 of other names: it is "a"
 ])
 def test_halves_of_one_task_split_only_beyond_the_reach(factor, names, counted, splits):
     cfg = LibraryConfig(**BASE, **(COUNTED if counted else {}))
