@@ -44,7 +44,7 @@ import numpy as np
 from drake_skills.library.novelty import NoveltyRule, chi2_ppf
 from drake_skills.promp.gaussian import logsumexp
 from drake_skills.library.scale import (BEGINNING_FRACTIONS, RECORD_TESTS, Cluster, SharedScale, gating_covariance,
-                                        main_task, mixed_share)
+                                        task_of)
 from drake_skills.library.views import Responsibilities
 
 _LOG_2PI = np.log(2.0 * np.pi)
@@ -98,8 +98,7 @@ class ComponentModel:
         ``mixed_task_share`` or more of it), kept with it once computed (components are immutable)."""
         cached = self.__dict__.get("_task_name")
         if cached is None or cached[0] != mixed_task_share:
-            t = self.cluster.tasks
-            cached = (mixed_task_share, main_task(t) if mixed_share(t) < mixed_task_share else None)
+            cached = (mixed_task_share, task_of(self.cluster.tasks, mixed_task_share))
             object.__setattr__(self, "_task_name", cached)   # a cache of derived data; the dataclass stays frozen
         return cached[1]
 
@@ -340,12 +339,6 @@ def single_demo_rule(config, scale: SharedScale, *, beginning: bool = False) -> 
     return q
 
 
-def _task_name(tasks: tuple, config) -> str | None:
-    """The task a cluster was taught as: its main task name, None without names or when other names hold
-    ``mixed_task_share`` or more of it."""
-    return main_task(tasks) if mixed_share(tasks) < config.mixed_task_share else None
-
-
 def _any_named(items) -> bool:
     return any(c.cluster.tasks for c in items)
 
@@ -554,7 +547,7 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
     task : str, optional
         The demonstration's task name, counted in the clusters it joins at their responsibility
         (``Cluster.tasks``); with ``keep_tasks_apart`` it joins no component taught as another task
-        (:func:`_task_name`), and merges follow the names (``same_task_reach``, ``keep_tasks_apart``).
+        (``ComponentModel.task_name``), and merges follow the names (``same_task_reach``, ``keep_tasks_apart``).
     """
     h = n_human
     work = _Work(comps, h)
@@ -714,8 +707,8 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
             if config.same_task_reach != 1.0 and rows.size:  # halves taught as one task: only beyond the same reach
                 for i in rows:  # (the reach only shrinks d2s: the candidates are among these rows)
                     a, b = work.items[int(i)].subclusters
-                    name = _task_name(a.tasks, config)
-                    if name is not None and name == _task_name(b.tasks, config):
+                    name = task_of(a.tasks, config.mixed_task_share)
+                    if name is not None and name == task_of(b.tasks, config.mixed_task_share):
                         d2s[i] /= config.same_task_reach
                 rows = rows[rule.splits(d2s[rows], h)]
             shares = _within_shares(work, rows, dz[rows], metric)

@@ -215,6 +215,12 @@ def main_task(tasks: tuple) -> str | None:
     return max(named, key=lambda t: t[1])[0] if named else None
 
 
+def task_of(tasks: tuple, mixed_task_share: float) -> str | None:
+    """The task a cluster was taught as: its main task name (:func:`main_task`), None without names or when
+    the other names hold ``mixed_task_share`` or more of its weight (:func:`mixed_share`)."""
+    return main_task(tasks) if mixed_share(tasks) < mixed_task_share else None
+
+
 def beginning_blind(tested: np.ndarray, missed: np.ndarray, shares: np.ndarray) -> np.ndarray:
     """Which components (K,) miss too many of their own beginnings at ``shares`` (K,) of their path.
 
