@@ -307,7 +307,7 @@ def test_cli_quick_keeps_the_orders_asked_for_and_names_the_robot_units(tmp_path
 
     out = tmp_path / "interaction"
     assert main(["eval", "interaction", "--data", str(require()), "--quick", "--orders", "1", "--robot-units", "m",
-                 "--no-progress", "--workers", "1", "--out", str(out)]) == 0
+                 "--loo-orders", "0", "--no-progress", "--workers", "1", "--out", str(out)]) == 0
     s = json.loads((out / "summary.json").read_text())
     assert len(s["components"]) == 1
     header, _ = _rows(out / "response.csv")
