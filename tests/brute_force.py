@@ -16,6 +16,7 @@ from drake_skills.library.algorithm import ComponentModel
 from drake_skills.library.novelty import chi2_ppf
 from drake_skills.library.scale import Cluster, SharedScale, gating_covariance, observation_noise
 from drake_skills.promp.basis import ridge_weights
+from drake_skills.promp.gaussian import inverse_lower
 from drake_skills.promp.interaction import prefix_statistics
 
 _LOG_2PI = np.log(2.0 * np.pi)
@@ -40,7 +41,7 @@ def _metric(scale, h, cfg):
     cov = gating_covariance(scale, h, prior_scale=cfg.prior_scale, prior_strength=cfg.prior_strength,
                             shrinkage=cfg.shrinkage, prior_floor=cfg.prior_floor)
     L = np.linalg.cholesky(cov)
-    return cov, np.linalg.inv(L), float(2.0 * np.sum(np.log(np.diag(L))))
+    return cov, inverse_lower(L), float(2.0 * np.sum(np.log(np.diag(L))))
 
 
 def _scores(w_h, means, support, metric):
@@ -290,7 +291,7 @@ class Reference:
             return out
         block = slice(h, None) if has_robot else slice(0, h)
         S = shared_cov[block, block] * (1.0 + 1.0 / support[best])
-        Linv = np.linalg.inv(np.linalg.cholesky(S))
+        Linv = inverse_lower(np.linalg.cholesky(S))
         mb = self.items[best].mean[block]
         diff = np.stack([self.items[j].mean[block] - mb for j in others]) @ Linv.T
         d2 = np.einsum("ij,ij->i", diff, diff)

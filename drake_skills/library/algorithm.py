@@ -42,7 +42,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from drake_skills.library.novelty import NoveltyRule, chi2_ppf
-from drake_skills.promp.gaussian import logsumexp
+from drake_skills.promp.gaussian import inverse_lower, logsumexp
 from drake_skills.library.scale import (BEGINNING_FRACTIONS, RECORD_TESTS, Cluster, SharedScale, gating_covariance,
                                         task_of)
 from drake_skills.library.views import Responsibilities
@@ -368,7 +368,7 @@ class Metric:
     @classmethod
     def of(cls, cov: np.ndarray) -> "Metric":
         L = np.linalg.cholesky(cov)
-        return cls(cov, np.linalg.inv(L), float(2.0 * np.sum(np.log(np.diag(L)))), L)
+        return cls(cov, inverse_lower(L), float(2.0 * np.sum(np.log(np.diag(L)))), L)
 
     def whiten(self, x: np.ndarray) -> np.ndarray:
         """``L^{-1} x`` for rows of ``x`` (n, h) or one (h,)."""
@@ -501,6 +501,9 @@ class Step:
     #: Component id -> index (0 or 1) of the sub-cluster the demonstration joined.
     subcluster: dict
     history: tuple[dict, ...]
+    #: The gating metric of ``scale`` when the step computed it (None otherwise): the library's
+    #: next queries and update start from it instead of factoring the same covariance again.
+    metric: Metric | None = None
 
 
 def _new_component(cid: int, created: int, w, duration: float, path_length: float,
@@ -742,4 +745,4 @@ def fold_in(comps: Components, scale: SharedScale, w: np.ndarray, duration: floa
     if len(gone_idx):
         work.remove(gone_idx)
     return Step(work.freeze(), scale, next_id, recognized, tuple(created), tuple(updated), tuple(merged),
-                tuple(split), tuple(deleted), resp, subs, tuple(history))
+                tuple(split), tuple(deleted), resp, subs, tuple(history), last[1] if last[0] is scale else None)

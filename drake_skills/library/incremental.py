@@ -627,6 +627,8 @@ class SkillLibrary(RecognitionMixin, FileMixin):
                 raise ValueError(f"{where}: {exc}; the library is unchanged") from None
         # commit: nothing above touched self
         self._components, self._scale, self._gain = step.components, step.scale, gain
+        if step.metric is not None:  # the metric of this version, already factored by the step
+            self._memo["metric"] = ((self._components, self._scale), step.metric)
         self._history.extend(step.history)
         self._next_id = step.next_id
         self._n_seen = n + 1

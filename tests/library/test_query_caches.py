@@ -222,3 +222,23 @@ def test_a_library_that_learns_answers_a_beginning_from_new_caches():
     np.testing.assert_allclose(after.posterior, fresh.posterior, rtol=0, atol=1e-12)
     assert len(before.ids) == len(after.ids) and not np.allclose(before.mahalanobis_sq, after.mahalanobis_sq,
                                                                    rtol=1e-6)
+
+
+def test_the_metric_an_update_leaves_behind_is_the_metric_of_the_library_s_scale_bit_for_bit():
+    """partial_fit keeps the gating metric its last step factored (``Step.metric``) as the library's: it must be the
+    metric of the committed scale, after creations, updates, merges and splits alike."""
+    from drake_skills.library.algorithm import gating_metric
+
+    rng = np.random.default_rng(3)
+    lib = SkillLibrary(LibraryConfig(workspace=WORKSPACE))
+    seeded = 0
+    for i in range(14):
+        lib.partial_fit(synthetic_demo(i % 3, rng))
+        hit = lib._memo.get("metric")
+        if hit is not None and hit[0][0] is lib._components and hit[0][1] is lib._scale:
+            seeded += 1
+            fresh = gating_metric(lib._scale, lib.n_human, lib.config)
+            for a, b in ((hit[1].cov, fresh.cov), (hit[1].inv_chol, fresh.inv_chol), (hit[1].chol, fresh.chol)):
+                np.testing.assert_array_equal(a, b)
+            assert hit[1].logdet == fresh.logdet
+    assert seeded >= 12, seeded  # every update after the first has components to score

@@ -386,3 +386,22 @@ def test_gmm_log_density_with_a_zero_weight_ignores_that_component_silently():
         warnings.simplefilter("error")
         out = g.gmm_log_density([[0.0]], [0.0, 1.0], means, chols)
     assert out[0] == pytest.approx(multivariate_normal(5.0, 1.0).logpdf(0.0), rel=1e-12)
+
+
+def test_inverse_lower_is_the_triangular_inverse_and_refuses_a_singular_factor():
+    """LAPACK's triangular inverse: lower triangular, L @ L^-1 = I within 1e-12, the general inverse within 1e-12."""
+    rng = np.random.default_rng(4)
+    A = rng.normal(size=(45, 45))
+    L = np.linalg.cholesky(A @ A.T + 45 * np.eye(45))
+    Li = g.inverse_lower(L)
+    assert Li.shape == (45, 45) and Li.flags["C_CONTIGUOUS"]
+    assert np.array_equal(Li, np.tril(Li))
+    np.testing.assert_allclose(L @ Li, np.eye(45), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(Li, np.linalg.inv(L), rtol=0, atol=1e-12)
+    assert g.inverse_lower(np.zeros((0, 0))).shape == (0, 0)
+    singular = L.copy()
+    singular[3, 3] = 0.0
+    with pytest.raises(np.linalg.LinAlgError, match="singular"):
+        g.inverse_lower(singular)
+    with pytest.raises(ValueError, match="square"):
+        g.inverse_lower(np.ones((2, 3)))
