@@ -29,6 +29,19 @@ from drake_skills.promp.gaussian import check_random_state, cholesky, symmetrize
 _LOG_2PI = np.log(2.0 * np.pi)
 
 
+def _blocks(M: np.ndarray, D: int) -> np.ndarray:
+    """``np.kron(np.eye(D), M)``: ``D`` copies of ``M`` (n, k) on the diagonal of a (D n, D k) matrix.
+
+    Written out because ``np.kron`` costs several times more at these sizes (3 x (15 x 15): 48 us
+    against a few on one machine), and conditioning builds one per call.
+    """
+    n, k = M.shape
+    out = np.zeros((D * n, D * k))
+    for d in range(D):
+        out[d * n:(d + 1) * n, d * k:(d + 1) * k] = M
+    return out
+
+
 def _observation_terms(mean_h, cov_hh, Phi_o, y_obs, noise_var):
     """Shared pieces of conditioning and the marginal likelihood.
 
@@ -37,7 +50,7 @@ def _observation_terms(mean_h, cov_hh, Phi_o, y_obs, noise_var):
     D = y_obs.shape[1]
     N = Phi_o.shape[1]
     PtP = Phi_o.T @ Phi_o
-    G = np.kron(np.eye(D), PtP)
+    G = _blocks(PtP, D)
     r = y_obs - Phi_o @ mean_h.reshape(D, N).T  # (m, D) residual of the prior mean
     u = (Phi_o.T @ r).T.reshape(-1)  # H r, stacked per dimension
     A = noise_var * np.eye(D * N) + G @ cov_hh
@@ -172,8 +185,8 @@ def prefix_statistics(mean_h, cov_hh, Phi_o, y_obs, noise_var: float, seen_rcond
     g, V = np.linalg.eigh(Phi_o.T @ Phi_o)
     keep = g >= (SEEN_RCOND if seen_rcond is None else seen_rcond) * g[-1]
     g, V = g[keep], V[:, keep]
-    x = np.kron(np.eye(D), V / np.sqrt(g)).T @ u
-    Vg = np.kron(np.eye(D), V * np.sqrt(g))
+    x = _blocks(V / np.sqrt(g), D).T @ u
+    Vg = _blocks(V * np.sqrt(g), D)
     C = noise_var * np.eye(x.size) + Vg.T @ cov_hh @ Vg
     d2 = float(x @ np.linalg.solve(C, x))
     return float(loglik), d2, float(x.size)

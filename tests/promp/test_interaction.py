@@ -135,3 +135,13 @@ def test_interaction_rejects_bad_input():
         InteractionProMP(3, 2).weights(np.random.rand(10, 3))
     with pytest.raises(ValueError, match="too short"):
         InteractionProMP(3, 0).weights(np.zeros((1, 3)))
+
+
+def test_the_block_diagonal_helper_is_np_kron_with_an_identity():
+    """interaction._blocks(M, D) equals np.kron(np.eye(D), M) exactly, square or rectangular blocks, D = 1 included."""
+    from drake_skills.promp.interaction import _blocks
+
+    rng = np.random.default_rng(1)
+    for shape, D in (((15, 15), 3), ((7, 4), 2), ((5, 5), 1), ((3, 0), 2)):
+        M = rng.normal(size=shape)
+        np.testing.assert_array_equal(_blocks(M, D), np.kron(np.eye(D), M))
