@@ -1,4 +1,6 @@
 """The letter experiment of Sec. 4.1 on real LASA handwriting data (issue 3's acceptance tests)."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -24,19 +26,11 @@ def _majority_labels(lib, demos, ws):
     return {k: max(set(v), key=v.count) for k, v in votes.items()}
 
 
-def test_letters_are_never_merged_and_held_out_ones_are_recognized_or_unknown_in_100_orders(letters):
-    """Six demonstrations per letter in random order, the seventh held out, 100 orders.
-
-    The safety-first design never merges two letters (no held-out letter answered with another one)
-    and recognizes >= 93 % of them; the rest are "unknown" (an outlier demonstration of a letter keeps
-    a component of its own until it is confirmed or deleted), so one component per letter holds in
-    about half of the orders and never more than two extra components are kept (measured: 5 in 52 %,
-    6 in 45 %, 7 in 3 % of 40 orders; 94.5 % recognized, 0 wrong).
-    """
-    demos, ws = letters
-    assert len({d.task for d in demos}) == 5
+def _letter_orders(demos, ws, orders: int, config: LibraryConfig):
+    """Six demonstrations per letter taught in random order, the seventh held out, ``orders`` orders: (orders with
+    one component per letter, most components, correct, wrong, held-out total)."""
     n_exact, correct, wrong, total, most = 0, 0, 0, 0, 0
-    for order_seed in range(100):
+    for order_seed in range(orders):
         rng = np.random.default_rng(order_seed)
         held = {task: int(rng.integers(7)) for task in DEFAULT_LETTERS}
         idx = {task: 0 for task in DEFAULT_LETTERS}
@@ -44,7 +38,7 @@ def test_letters_are_never_merged_and_held_out_ones_are_recognized_or_unknown_in
         for d in demos:
             (test if idx[d.task] == held[d.task] else train).append(d)
             idx[d.task] += 1
-        lib = SkillLibrary(LibraryConfig(workspace=ws))
+        lib = SkillLibrary(replace(config, workspace=ws))
         for i in rng.permutation(len(train)):
             lib.partial_fit(train[i])
         labels = _majority_labels(lib, train, ws)
@@ -56,9 +50,34 @@ def test_letters_are_never_merged_and_held_out_ones_are_recognized_or_unknown_in
             correct += rec.component is not None and labels.get(rec.component) == d.task
             wrong += rec.component is not None and labels.get(rec.component) != d.task
             total += 1
+    return n_exact, most, correct, wrong, total
+
+
+def test_letters_taught_with_their_names_give_one_component_each_in_40_orders(letters):
+    """The defaults (the teacher's letter names used to learn): one component per letter in every one of 40 orders,
+    no held-out letter answered with another, >= 95 % recognized (measured: 40 of 40 orders with 5 components,
+    0.965 recognized; 100 of 100 and 0.974 over 100 orders)."""
+    demos, ws = letters
+    assert len({d.task for d in demos}) == 5
+    n_exact, most, correct, wrong, total = _letter_orders(demos, ws, 40, LibraryConfig())
+    assert wrong == 0, f"{wrong} held-out letters answered with another letter"
+    assert n_exact == 40 and most == 5, (n_exact, most)
+    assert correct / total >= 0.95, f"held-out accuracy {correct / total:.3f}"
+
+
+def test_letters_are_never_merged_and_held_out_ones_are_recognized_or_unknown_without_their_names(letters):
+    """The paper's protocol (names not used to learn), 30 orders. The safety-first design never merges two letters
+    (no held-out letter answered with another one) and recognizes >= 93 % of them; the rest are "unknown" (an
+    outlier demonstration of a letter keeps a component of its own until it is confirmed or deleted), so one
+    component per letter holds in about half of the orders and never more than two extra components are kept
+    (measured over 30 orders: 19 with 5 components, at most 6, 0.953 recognized, 0 wrong; over 100: 65, at most 7,
+    0.962, 0 wrong)."""
+    demos, ws = letters
+    names_off = LibraryConfig(keep_tasks_apart=False, same_task_reach=1.0)
+    n_exact, most, correct, wrong, total = _letter_orders(demos, ws, 30, names_off)
     assert wrong == 0, f"{wrong} held-out letters answered with another letter"
     assert correct / total >= 0.93, f"held-out accuracy {correct / total:.3f}"
-    assert n_exact >= 40 and most <= 7, (n_exact, most)
+    assert n_exact >= 12 and most <= 7, (n_exact, most)
 
 
 def test_kl_to_labeled_baseline_falls_with_samples_per_shape(letters):
