@@ -174,6 +174,9 @@ def trajectory_covariance(Sigma, basis: GaussianBasis, n_dims: int, z=None, n_st
     # dimension d, then a reduction over j. One big (T x N) @ (N x D*D*N) product would be
     # the same flops, but it crosses OpenBLAS's threading threshold and on a 2-core
     # machine costs 3-5x more in thread start-up than it saves (measured: 0.29 vs 0.05 ms).
+    # The reduction over j as a batched product (t, d, e, j) @ (t, j, 1): the einsum it replaces cost
+    # 1.5x more (7 joints, 15 basis functions, 100 steps: 0.25 against 0.16 ms on one machine).
+    T = Phi.shape[0]
     tmp = np.matmul(Phi[None], Sigma.reshape(n_dims, N, n_dims * N))  # (d, t, e*j)
-    cov = np.einsum("dtej,tj->tde", tmp.reshape(n_dims, -1, n_dims, N), Phi)
+    cov = np.matmul(tmp.reshape(n_dims, T, n_dims, N).transpose(1, 0, 2, 3), Phi[:, None, :, None])[..., 0]
     return 0.5 * (cov + cov.transpose(0, 2, 1))
