@@ -174,3 +174,20 @@ def test_trajectory_functions_default_to_100_steps_and_take_given_phases():
     Psi = np.kron(np.eye(2), b.phi(z)[1][None, :])
     np.testing.assert_allclose(cov[1], Psi @ S @ Psi.T, rtol=1e-10)
     assert cov.shape == (3, 2, 2)
+
+
+def test_trajectory_covariance_is_psi_sigma_psi_at_every_step_for_seven_joints():
+    """7 joints, 15 basis functions, 100 steps (the robot's prediction): every step equals the explicit
+    Psi_t Sigma Psi_t^T within 1e-12 relative, and is symmetric exactly."""
+    rng = np.random.default_rng(3)
+    basis, D = GaussianBasis(15), 7
+    A = rng.standard_normal((D * 15, D * 15))
+    Sigma = A @ A.T
+    cov = trajectory_covariance(Sigma, basis, D, n_steps=100)
+    assert cov.shape == (100, D, D)
+    Phi = basis.phi_uniform(100)
+    for t in range(100):
+        Psi = np.kron(np.eye(D), Phi[t][None, :])
+        ref = Psi @ Sigma @ Psi.T
+        np.testing.assert_allclose(cov[t], ref, rtol=1e-12, atol=1e-12 * np.abs(ref).max())
+        assert np.array_equal(cov[t], cov[t].T)
