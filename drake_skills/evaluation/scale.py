@@ -123,6 +123,13 @@ class LasaTrial:
     events: dict = field(default_factory=dict)
     #: Shape -> components whose demonstrations are mostly of that shape (0: it has none of its own).
     per_shape: dict = field(default_factory=dict)
+    #: Shape -> outcome counts (correct, wrong, undecided, unknown) of its held-out demonstrations.
+    per_shape_counts: dict = field(default_factory=dict)
+
+
+def is_multi_model(shape: str) -> bool:
+    """A LASA ``Multi_Models_*`` shape: several motions under one name, some of them other shapes' patterns."""
+    return shape.startswith("Multi_Models")
 
 
 def _count(outcomes) -> tuple[int, int, int, int]:
@@ -154,7 +161,8 @@ def lasa_trial(ctx: LasaContext, index: int) -> LasaTrial:
     per_shape = dict.fromkeys(by_shape, 0)
     for c in lab.library.components:
         per_shape[lab.label_of(c.id)] += 1
-    return LasaTrial(lab.library.n_components, _count(outcomes), events, per_shape)
+    per_counts = {k: _count([o for o, j in zip(outcomes, test) if ctx.demos[j].task == k]) for k in by_shape}
+    return LasaTrial(lab.library.n_components, _count(outcomes), events, per_shape, per_counts)
 
 
 @dataclass(frozen=True)
@@ -319,16 +327,26 @@ def evaluate_scale(settings: ScaleSettings | None = None, *, progress: bool = Tr
                      f"motions (fractions of {len(shapes) * (N_DEMOS - s.lasa_train)}); {len(shapes)} shapes. "
                      + _EVENTS_CAPTION.format("shape")))
         counts = {k: [t.per_shape[k] for t in trials] for k in shapes}
+        held = {k: np.sum([t.per_shape_counts[k] for t in trials], axis=0) for k in shapes}
         rep.tables["lasa_shapes"] = Table(
-            ["shape", "components (mean over orders)", "orders with exactly 1"],
-            [[k, float(np.mean(v)), sum(x == 1 for x in v)] for k, v in counts.items()],
+            ["shape", "components (mean over orders)", "orders with exactly 1"] + list(OUTCOMES),
+            [[k, float(np.mean(v)), sum(x == 1 for x in v), *_fractions(held[k])] for k, v in counts.items()],
             caption=("Components per LASA shape: those whose taught demonstrations are mostly of the shape. The "
                      "Multi_Models shapes are multi-model motions, not single patterns (the dataset's naming), so more "
                      "than one component is a fair answer for them; 0: the shape's demonstrations joined another shape's "
-                     "component."))
+                     "component. Outcomes: the shape's held-out demonstrations over all orders (a Multi_Models shape "
+                     "reuses other shapes' patterns, e.g. a trapezoid: its motion is then taught under two names)."))
+        single = [k for k in shapes if not is_multi_model(k)]
+        single_fr = _fractions(np.sum([held[k] for k in single], axis=0)) if single else [float("nan")] * 4
+        if single and len(single) < len(shapes):
+            rep.tables["lasa"].caption += (
+                f" The {len(single)} single-pattern shapes (all but Multi_Models) over all orders: "
+                + ", ".join(f"{o} {v:.3f}" for o, v in zip(OUTCOMES, single_fr)) + ".")
         summary["lasa"] = {"shapes": len(shapes), "components_mean": lasa_components,
                            "components_per_shape": counts,
                            **{f"{k}_mean": float(v) for k, v in zip(OUTCOMES, fr.mean(axis=0))},
+                           "single_pattern_shapes": len(single),
+                           **{f"single_pattern_{k}": float(v) for k, v in zip(OUTCOMES, single_fr)},
                            "components_per_order": comps.tolist(),
                            "events_per_order": [dict(t.events) for t in trials]}
     items = [(K, order) for K in s.sizes for order in s.orders]

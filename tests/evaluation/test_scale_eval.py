@@ -5,6 +5,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from drake_skills.data.lasa import LASA_SHAPES
 from drake_skills.evaluation.scale import EVENTS, OUTCOMES, ScaleSettings, evaluate_scale, tally_events
 from drake_skills.library.views import Update
 
@@ -53,6 +54,20 @@ def test_lasa_in_one_library_is_scored_on_the_held_out_demonstrations(report):
     assert len(per) == 6 and [sum(v[i] for v in per.values()) for i in range(1)] == s["components_per_order"]
     assert report.tables["lasa_shapes"].column("shape") == list(per)
     assert "scale" in report.figures
+    # each shape's held-out outcomes are fractions that sum to 1; their sum over shapes is the order's table
+    shapes = report.tables["lasa_shapes"]
+    per_shape = np.array([shapes.column(k) for k in OUTCOMES], float).T
+    np.testing.assert_allclose(per_shape.sum(axis=1), 1.0, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(per_shape.mean(axis=0), [s[f"{k}_mean"] for k in OUTCOMES], rtol=0, atol=1e-12)
+    # no Multi_Models shape among the six: the single-pattern figures are the whole table's
+    assert s["single_pattern_shapes"] == 6
+    assert [s[f"single_pattern_{k}"] for k in OUTCOMES] == pytest.approx([s[f"{k}_mean"] for k in OUTCOMES], abs=1e-12)
+
+
+def test_multi_model_shapes_are_told_apart_by_their_name():
+    from drake_skills.evaluation.scale import is_multi_model
+
+    assert [s for s in LASA_SHAPES if is_multi_model(s)] == [f"Multi_Models_{i}" for i in range(1, 5)]
 
 
 def test_the_same_seed_gives_the_same_libraries_and_answers(report):
@@ -87,7 +102,6 @@ def test_cli_writes_the_tables_the_plot_and_the_summary(tmp_path):
 def test_shapes_option_names_the_halves_the_defaults_were_chosen_and_reported_on():
     """--shapes half-a / half-b are every other LASA shape (disjoint, together all 30); bad names are refused."""
     from drake_skills.commands.evaluate import _lasa_shapes
-    from drake_skills.data.lasa import LASA_SHAPES
 
     a, b = _lasa_shapes("half-a"), _lasa_shapes("half-b")
     assert len(a) == len(b) == 15 and not set(a) & set(b) and set(a) | set(b) == set(LASA_SHAPES)
