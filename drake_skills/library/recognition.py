@@ -37,7 +37,7 @@ from drake_skills.library.scale import (BEGINNING_FRACTIONS, beginning_blind, cr
                                         mixed_share, observation_noise)
 from drake_skills.library.views import Recognition, StillMotionError, UnknownSkillError
 from drake_skills.promp.basis import GaussianBasis, ridge_weights, trajectory_covariance
-from drake_skills.promp.interaction import condition_on_observations, conditioned_mean_shift
+from drake_skills.promp.interaction import condition_blocks, condition_on_observations, conditioned_mean_shift
 from drake_skills.promp.gaussian import inverse_lower
 from drake_skills.promp.preprocessing import restart_vertex
 
@@ -425,14 +425,13 @@ class RecognitionMixin:
         compared with (see :meth:`_prefix_model`).
         """
         h = self.n_human
-        Phi_o = self.config.basis_human.phi(np.linspace(0.0, f, y.shape[0]))
+        Phi_o = self.config.basis_human.phi_span(f, y.shape[0])
         U = self._prefix_model().unshrink
-        mean = np.concatenate([U @ c.mean[:h], c.mean[h:]])
-        cov = np.array(self._expert_cov(c))
-        cov[:h, :] = U @ cov[:h, :]
-        cov[:, :h] = cov[:, :h] @ U.T
-        mean_w, cov_w = condition_on_observations(mean, cov, Phi_o, y, self._noise(), start=h)
-        return mean[h:], cov[h:, h:], mean_w, cov_w
+        E = self._expert_cov(c)   # its human rows and columns seen through U (S^-1), the blocks only
+        cov_hh, cov_rh = (U @ E[:h, :])[:, :h] @ U.T, E[h:, :h] @ U.T
+        mean_w, cov_w = condition_blocks(U @ c.mean[:h], c.mean[h:], cov_hh, cov_rh, E[h:, h:], Phi_o, y,
+                                         self._noise())
+        return c.mean[h:], E[h:, h:], mean_w, cov_w
 
     def _correction(self, c: ComponentModel, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Eq. (13)'s shift of component ``c``'s robot weights for a whole motion's samples ``y``, and their prior mean.

@@ -81,10 +81,25 @@ def condition_on_observations(mean, cov, Phi_o, y_obs, noise_var: float, *, star
     cov_new : array, shape (d - start, d - start)
     """
     h = y_obs.shape[1] * Phi_o.shape[1]
-    G, u, _, A = _observation_terms(mean[:h], cov[:h, :h], Phi_o, y_obs, noise_var)
-    C = cov[start:, :h]
-    mean_new = mean[start:] + C @ np.linalg.solve(A, u)
-    cov_new = cov[start:, start:] - (C @ np.linalg.solve(A, G)) @ C.T
+    return condition_blocks(mean[:h], mean[start:], cov[:h, :h], cov[start:, :h], cov[start:, start:], Phi_o,
+                            y_obs, noise_var)
+
+
+def condition_blocks(mean_h, mean_x, cov_hh, cov_xh, cov_xx, Phi_o, y_obs, noise_var: float):
+    """:func:`condition_on_observations` from the blocks it reads: the posterior of other weights ``x``.
+
+    ``mean_h`` (h,), ``cov_hh`` (h, h): the observed agent's prior; ``mean_x`` (n,), ``cov_xh`` (n, h),
+    ``cov_xx`` (n, n): the weights whose posterior is returned, and their covariance with the observed
+    ones. A caller that holds the blocks need not assemble the whole (d, d) covariance.
+
+    Returns
+    -------
+    mean_new : array, shape (n,)
+    cov_new : array, shape (n, n)
+    """
+    G, u, _, A = _observation_terms(mean_h, cov_hh, Phi_o, y_obs, noise_var)
+    mean_new = mean_x + cov_xh @ np.linalg.solve(A, u)
+    cov_new = cov_xx - (cov_xh @ np.linalg.solve(A, G)) @ cov_xh.T
     return mean_new, symmetrize(cov_new)
 
 

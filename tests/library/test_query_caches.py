@@ -242,3 +242,38 @@ def test_the_metric_an_update_leaves_behind_is_the_metric_of_the_library_s_scale
                 np.testing.assert_array_equal(a, b)
             assert hit[1].logdet == fresh.logdet
     assert seeded >= 12, seeded  # every update after the first has components to score
+
+
+def test_conditioning_from_the_blocks_equals_conditioning_the_assembled_covariance():
+    """_condition reads the expert covariance's blocks (the human ones through S^-1) instead of assembling the whole
+    (d, d) matrix: the robot's prior and posterior equal those of Eq. (13) on the assembled matrix within 1e-12."""
+    from drake_skills.promp.interaction import condition_on_observations
+
+    lib, rng = _lib(5)
+    h = lib.n_human
+    for k, f in ((0, 0.4), (1, 0.75), (0, 1.0)):
+        c = lib._model(lib.components[k].id)
+        y = lib.human_samples(synthetic_demo(k, rng).human, observed_fraction=f)
+        U = lib._prefix_model().unshrink
+        mean = np.concatenate([U @ c.mean[:h], c.mean[h:]])
+        cov = np.array(lib._expert_cov(c))
+        cov[:h, :] = U @ cov[:h, :]
+        cov[:, :h] = cov[:, :h] @ U.T
+        Phi = lib.config.basis_human.phi(np.linspace(0.0, f, y.shape[0]))
+        want_mean, want_cov = condition_on_observations(mean, cov, Phi, y, lib._noise(), start=h)
+        prior_w, prior_cov, got_mean, got_cov = lib._condition(c, y, f)
+        np.testing.assert_array_equal(prior_w, c.mean[h:])
+        np.testing.assert_array_equal(prior_cov, cov[h:, h:])
+        np.testing.assert_allclose(got_mean, want_mean, rtol=1e-12, atol=1e-12 * np.abs(want_mean).max())
+        np.testing.assert_allclose(got_cov, want_cov, rtol=1e-12, atol=1e-12 * np.abs(want_cov).max())
+
+
+def test_phi_span_is_the_basis_at_evenly_spaced_phases_and_read_only():
+    from drake_skills.promp.basis import GaussianBasis
+
+    b = GaussianBasis(7)
+    P = b.phi_span(0.35, 23)
+    np.testing.assert_array_equal(P, b.phi(np.linspace(0.0, 0.35, 23)))
+    assert b.phi_span(0.35, 23) is P and not P.flags.writeable
+    with pytest.raises(ValueError, match="phase must lie in"):
+        b.phi_span(1.5, 4)
