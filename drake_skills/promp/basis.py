@@ -171,6 +171,25 @@ def trajectory_from_weights(w, basis: GaussianBasis, n_dims: int, z=None, n_step
     return Phi @ w.reshape(n_dims, basis.n_basis).T  # (T, N) @ (N, D)
 
 
+def trajectory_variance(Sigma, basis: GaussianBasis, n_dims: int, z=None, n_steps: int = 100) -> np.ndarray:
+    """Per-step variance of each dimension of the trajectory of weights ~ N(mu, Sigma).
+
+    The diagonals of :func:`trajectory_covariance` (``var[t, d] = phi_t^T Sigma_dd phi_t``) from the
+    diagonal blocks of ``Sigma`` alone: a controller that shows or bounds each joint's spread needs
+    no cross-joint covariance, and this costs about a dimension's share of it.
+
+    Returns
+    -------
+    var : array, shape (T, n_dims)
+    """
+    N = basis.n_basis
+    Sigma = as_finite_array(Sigma, "covariance", shape=(n_dims * N, n_dims * N))
+    Phi = basis.phi_uniform(n_steps) if z is None else basis.phi(z)
+    d = np.arange(n_dims)
+    blocks = Sigma.reshape(n_dims, N, n_dims, N)[d, :, d, :]                  # (D, N, N)
+    return np.einsum("dtj,tj->td", np.matmul(Phi[None], blocks), Phi)
+
+
 def trajectory_covariance(Sigma, basis: GaussianBasis, n_dims: int, z=None, n_steps: int = 100) -> np.ndarray:
     """Per-step covariance of the trajectory of weights ~ N(mu, Sigma).
 

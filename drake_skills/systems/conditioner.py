@@ -125,9 +125,9 @@ def condition_robot(library: SkillLibrary, component: int, motion: ObservedMotio
         phase = 1.0
     else:
         phase = library.estimate_phase(motion.samples, int(component), normalized=True, restart=restart)
-    mean, cov = library.predict_robot(motion.samples, phase, normalized=True, component=int(component),
-                                      n_steps=n_steps, restart=restart)
-    std = np.sqrt(np.maximum(np.diagonal(cov, axis1=1, axis2=2), 0.0))
+    mean, var = library.predict_robot(motion.samples, phase, normalized=True, component=int(component),
+                                      n_steps=n_steps, restart=restart, variances_only=True)
+    std = np.sqrt(np.maximum(var, 0.0))
     return ConditionedTrajectory(int(component), mean, std, float(c.duration), float(start_time), int(revision),
                                  float(phase))
 

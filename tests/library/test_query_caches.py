@@ -277,3 +277,17 @@ def test_phi_span_is_the_basis_at_evenly_spaced_phases_and_read_only():
     assert b.phi_span(0.35, 23) is P and not P.flags.writeable
     with pytest.raises(ValueError, match="phase must lie in"):
         b.phi_span(1.5, 4)
+
+
+def test_predict_robot_variances_only_gives_the_diagonals_of_the_full_covariance():
+    """The conditioner's call (variances_only=True): the same mean, and each joint's variance the diagonal of the
+    per-step covariance within 1e-12 of the largest, for a prefix (phase estimated) and a whole motion."""
+    lib, rng = _lib(6)
+    k = lib.components[0].id
+    human = synthetic_demo(0, rng).human
+    for y, f in ((human[:50], None), (human, 1.0)):
+        m_full, cov = lib.predict_robot(y, f, component=k)
+        m_var, var = lib.predict_robot(y, f, component=k, variances_only=True)
+        np.testing.assert_array_equal(m_full, m_var)
+        assert var.shape == m_var.shape
+        np.testing.assert_allclose(var, np.diagonal(cov, axis1=1, axis2=2), rtol=0, atol=1e-12 * np.abs(cov).max())

@@ -191,3 +191,21 @@ def test_trajectory_covariance_is_psi_sigma_psi_at_every_step_for_seven_joints()
         ref = Psi @ Sigma @ Psi.T
         np.testing.assert_allclose(cov[t], ref, rtol=1e-12, atol=1e-12 * np.abs(ref).max())
         assert np.array_equal(cov[t], cov[t].T)
+
+
+def test_trajectory_variance_is_the_diagonal_of_the_covariance():
+    """7 joints at 100 uniform steps, 2 dimensions at given phases, and 1 dimension: the per-step variances equal
+    the diagonals of trajectory_covariance within 1e-12 of the largest."""
+    from drake_skills.promp.basis import trajectory_variance
+
+    rng = np.random.default_rng(5)
+    for N, D, z in ((20, 7, None), (5, 2, np.array([0.0, 0.3, 0.31, 1.0])), (6, 1, None)):
+        basis = GaussianBasis(N)
+        A = rng.standard_normal((D * N, D * N))
+        Sigma = A @ A.T
+        full = trajectory_covariance(Sigma, basis, D, z=z, n_steps=100)
+        var = trajectory_variance(Sigma, basis, D, z=z, n_steps=100)
+        assert var.shape == full.shape[:2]
+        np.testing.assert_allclose(var, np.diagonal(full, axis1=1, axis2=2), rtol=0, atol=1e-12 * np.abs(full).max())
+    with pytest.raises(ValueError):
+        trajectory_variance(np.eye(7), GaussianBasis(5), 2)
