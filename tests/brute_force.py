@@ -41,7 +41,9 @@ def _metric(scale, h, cfg):
     cov = gating_covariance(scale, h, prior_scale=cfg.prior_scale, prior_strength=cfg.prior_strength,
                             shrinkage=cfg.shrinkage, prior_floor=cfg.prior_floor)
     L = np.linalg.cholesky(cov)
-    return cov, inverse_lower(L), float(2.0 * np.sum(np.log(np.diag(L))))
+    Linv = inverse_lower(L)   # the library's routine (exact comparisons need its rounding), checked against numpy's
+    assert np.allclose(Linv, np.linalg.inv(L), rtol=1e-10, atol=1e-12 * np.abs(Linv).max())
+    return cov, Linv, float(2.0 * np.sum(np.log(np.diag(L))))
 
 
 def _scores(w_h, means, support, metric):

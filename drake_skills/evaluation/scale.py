@@ -337,7 +337,7 @@ def evaluate_scale(settings: ScaleSettings | None = None, *, progress: bool = Tr
                      "component. Outcomes: the shape's held-out demonstrations over all orders (a Multi_Models shape "
                      "reuses other shapes' patterns, e.g. a trapezoid: its motion is then taught under two names)."))
         single = [k for k in shapes if not is_multi_model(k)]
-        single_fr = _fractions(np.sum([held[k] for k in single], axis=0)) if single else [float("nan")] * 4
+        single_fr = _fractions(np.sum([held[k] for k in single], axis=0)) if single else [None] * 4
         if single and len(single) < len(shapes):
             rep.tables["lasa"].caption += (
                 f" The {len(single)} single-pattern shapes (all but Multi_Models) over all orders: "
@@ -346,7 +346,7 @@ def evaluate_scale(settings: ScaleSettings | None = None, *, progress: bool = Tr
                            "components_per_shape": counts,
                            **{f"{k}_mean": float(v) for k, v in zip(OUTCOMES, fr.mean(axis=0))},
                            "single_pattern_shapes": len(single),
-                           **{f"single_pattern_{k}": float(v) for k, v in zip(OUTCOMES, single_fr)},
+                           **{f"single_pattern_{k}": v for k, v in zip(OUTCOMES, single_fr)},
                            "components_per_order": comps.tolist(),
                            "events_per_order": [dict(t.events) for t in trials]}
     items = [(K, order) for K in s.sizes for order in s.orders]

@@ -110,3 +110,21 @@ def test_shapes_option_names_the_halves_the_defaults_were_chosen_and_reported_on
     assert _lasa_shapes(f"{LASA_SHAPES[3]}, {LASA_SHAPES[5]},{LASA_SHAPES[3]}") == (LASA_SHAPES[3], LASA_SHAPES[5])
     with pytest.raises(ValueError, match="unknown LASA shapes \\['Nope'\\]"):
         _lasa_shapes("Nope")
+
+
+def test_with_a_multi_model_shape_the_single_pattern_figures_leave_it_out():
+    """Angle and Multi_Models_2, one order: the single-pattern figures are Angle's row of lasa_shapes, the caption
+    says them, and a set of Multi_Models shapes only has none (null in the summary, not NaN)."""
+    s = replace(ScaleSettings.quick(seed=2), lasa_shapes=("Angle", "Multi_Models_2"), sizes=(10,),
+                orders=("random",))
+    rep = evaluate_scale(s, progress=False, figures=False)
+    summary = rep.summary["lasa"]
+    shapes = rep.tables["lasa_shapes"]
+    angle = shapes.rows[shapes.column("shape").index("Angle")]
+    assert summary["single_pattern_shapes"] == 1
+    assert [summary[f"single_pattern_{k}"] for k in OUTCOMES] == [angle[shapes.columns.index(k)] for k in OUTCOMES]
+    assert "The 1 single-pattern shapes (all but Multi_Models)" in rep.tables["lasa"].caption
+    only = evaluate_scale(replace(s, lasa_shapes=("Multi_Models_2",)), progress=False, figures=False)
+    assert only.summary["lasa"]["single_pattern_shapes"] == 0
+    assert all(only.summary["lasa"][f"single_pattern_{k}"] is None for k in OUTCOMES)
+    json.dumps(only.summary, allow_nan=False)

@@ -66,10 +66,11 @@ def test_letters_taught_with_their_names_give_one_component_each_in_40_orders(le
 
 
 def test_letters_are_never_merged_and_held_out_ones_are_recognized_or_unknown_without_their_names(letters):
-    """The paper's protocol (names not used to learn), 30 orders. The safety-first design never merges two letters
-    (no held-out letter answered with another one) and recognizes >= 93 % of them; the rest are "unknown" (an
-    outlier demonstration of a letter keeps a component of its own until it is confirmed or deleted), so one
-    component per letter holds in about half of the orders and never more than two extra components are kept
+    """The names not used to learn (``same_task_reach`` 1, ``keep_tasks_apart`` off: the paper's learning; the
+    recognition's name rules stay, and change nothing on these letters), 30 orders. The safety-first design never
+    merges two letters (no held-out letter answered with another one) and recognizes >= 93 % of them; the rest are
+    "unknown" (an outlier demonstration of a letter keeps a component of its own until it is confirmed or deleted),
+    so one component per letter holds in about half of the orders and never more than two extra components are kept
     (measured over 30 orders: 19 with 5 components, at most 6, 0.953 recognized, 0 wrong; over 100: 65, at most 7,
     0.962, 0 wrong)."""
     demos, ws = letters

@@ -226,7 +226,8 @@ def test_a_library_that_learns_answers_a_beginning_from_new_caches():
 
 def test_the_metric_an_update_leaves_behind_is_the_metric_of_the_library_s_scale_bit_for_bit():
     """partial_fit keeps the gating metric its last step factored (``Step.metric``) as the library's: it must be the
-    metric of the committed scale, after creations, updates, merges and splits alike."""
+    metric of the committed scale (a stream of creations and updates; ``test_scale.py`` checks one with merges,
+    splits and deletions)."""
     from drake_skills.library.algorithm import gating_metric
 
     rng = np.random.default_rng(3)
@@ -241,7 +242,7 @@ def test_the_metric_an_update_leaves_behind_is_the_metric_of_the_library_s_scale
             for a, b in ((hit[1].cov, fresh.cov), (hit[1].inv_chol, fresh.inv_chol), (hit[1].chol, fresh.chol)):
                 np.testing.assert_array_equal(a, b)
             assert hit[1].logdet == fresh.logdet
-    assert seeded >= 12, seeded  # every update after the first has components to score
+    assert seeded >= 12, seeded  # every update after the first here: nothing splits or is deleted
 
 
 def test_conditioning_from_the_blocks_equals_conditioning_the_assembled_covariance():

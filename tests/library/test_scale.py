@@ -103,6 +103,36 @@ def test_partial_fit_matches_the_reference_through_merges_splits_and_deletions(l
     _assert_same_state(lib, ref)
 
 
+def test_the_metric_an_update_keeps_is_the_metric_of_the_committed_scale_through_every_branch(letters):
+    """partial_fit keeps the gating metric its step factored last (``Step.metric``) only when it is the metric of
+    the scale it commits: on the stream above (creations, updates, merges, splits, deletions) the kept metric equals
+    a fresh one bit for bit after every update, and the steps whose last change to the scale came after the last
+    factorization (a split, a deletion) keep none."""
+    from drake_skills.library.algorithm import gating_metric
+
+    demos, ws = letters
+    order = np.random.default_rng(1).permutation(len(demos))
+    cfg = LibraryConfig(workspace=ws, prior_scale=0.6, delete_min_age=2, novelty_quantile=0.999,
+                        single_demo_quantile=1.0, **NAMES_OFF)
+    lib = SkillLibrary(cfg)
+    seeded, unseeded = 0, []
+    for j in order:
+        u = lib.partial_fit(demos[j])
+        hit = lib._memo.get("metric")
+        if hit is None or hit[0][0] is not lib._components or hit[0][1] is not lib._scale:
+            unseeded.append(u)
+            continue
+        seeded += 1
+        fresh = gating_metric(lib._scale, lib.n_human, lib.config)
+        for a, b in ((hit[1].cov, fresh.cov), (hit[1].inv_chol, fresh.inv_chol), (hit[1].chol, fresh.chol)):
+            np.testing.assert_array_equal(a, b)
+        assert hit[1].logdet == fresh.logdet
+    events = {e["event"] for e in lib.history}
+    assert {"created", "merged", "split", "deleted"} <= events, events
+    assert seeded >= len(order) // 2, seeded
+    assert any(u.split or u.deleted for u in unseeded), "a split or a deletion leaves no metric to keep"
+
+
 def test_partial_fit_matches_the_reference_with_the_names_used_to_learn(letters):
     """The same stream with the names used (the defaults: ``same_task_reach`` 2, ``keep_tasks_apart``): the early
     merges of different letters are not made, and the reference, which applies the two rules pair by pair, agrees at

@@ -405,3 +405,8 @@ def test_inverse_lower_is_the_triangular_inverse_and_refuses_a_singular_factor()
         g.inverse_lower(singular)
     with pytest.raises(ValueError, match="square"):
         g.inverse_lower(np.ones((2, 3)))
+    # only the lower triangle is read: junk above it changes nothing; F-ordered and 1 x 1 inputs
+    junk = L + np.triu(np.full((45, 45), 7.0), 1)
+    np.testing.assert_array_equal(g.inverse_lower(junk), Li)
+    np.testing.assert_array_equal(g.inverse_lower(np.asfortranarray(L)), Li)
+    assert g.inverse_lower(np.array([[4.0]])).tolist() == [[0.25]]
