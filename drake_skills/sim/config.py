@@ -34,6 +34,8 @@ from drake_skills.systems.wrist_faults import TrackerFaults
 
 #: Subject models of the simulated salad scenario (drake_skills.scenario.salad), the default first.
 SUBJECT_MODELS = ("styled", "classic")
+#: SimConfig.integrator: how the Diagram's continuous state is integrated between the plant's steps.
+INTEGRATORS = ("explicit_euler", "runge_kutta2", "drake_default")
 
 
 @dataclass
@@ -91,6 +93,11 @@ class SimConfig:
     seed: int = 0
     # time step of the discrete MultibodyPlant (s)
     time_step: float = 1e-3
+    # integrator of the Diagram's continuous state, which is only the controller's PID integral (the plant is
+    # discrete): "explicit_euler" or "runge_kutta2" in fixed steps of time_step, or "drake_default" (Drake's
+    # error-controlled third-order Runge-Kutta, which evaluates the controller three times per plant step:
+    # the full Diagram runs about 1.2x slower, with the same trials; BENCHMARKS.md, "Closed loop")
+    integrator: str = "explicit_euler"
     # the skill library the robot starts with (empty) and teaches
     library: LibraryConfig = field(default_factory=LibraryConfig)
     # when the gating decides
@@ -141,6 +148,8 @@ class SimConfig:
             raise ValueError(f"SimConfig.unknown_hold_time must be >= 0, got {self.unknown_hold_time!r}")
         if isinstance(self.subject, bool) or int(self.subject) != self.subject or self.subject < 1:
             raise ValueError(f"SimConfig.subject is a 1-based index, got {self.subject!r}")
+        if self.integrator not in INTEGRATORS:
+            raise ValueError(f"SimConfig.integrator must be one of {INTEGRATORS}, got {self.integrator!r}")
         if self.subject_model not in SUBJECT_MODELS:
             raise ValueError(f"SimConfig.subject_model must be one of {SUBJECT_MODELS}, got {self.subject_model!r}")
         if self.trials < 1 or self.n_steps < 2 or self.demos_per_task < 1:

@@ -15,7 +15,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 from pydrake.geometry import Meshcat
-from pydrake.systems.analysis import Simulator
+from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 from pydrake.systems.framework import Diagram
 
 from drake_skills.data.demonstration import Demonstration
@@ -237,6 +237,8 @@ class CollaborationSim:
         self.workspace = workspace
         self.diagram, self.handles = self._build(meshcat)
         self.simulator = Simulator(self.diagram)
+        if config.integrator != "drake_default":   # the PID integral in fixed plant steps (SimConfig.integrator)
+            ResetIntegratorFromFlags(self.simulator, config.integrator, config.time_step)
         self.context = self.simulator.get_mutable_context()
         h: DiagramHandles = self.handles
         self._plant_context = h.plant.GetMyContextFromRoot(self.context)

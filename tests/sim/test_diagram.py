@@ -68,6 +68,29 @@ def test_taught_library_hands_over_within_5cm_of_held_out_demo(subject, taught, 
     assert result.tracking_rms_rad < 0.01
 
 
+def test_fixed_plant_steps_for_the_pid_integral_give_the_trial_of_drake_s_default_integrator(subject, taught):
+    """SimConfig.integrator: the default (explicit Euler in the plant's 1 ms steps) integrates only the controller's
+    PID integral, and a held-out trial decides the same skill, at the same commit, and moves the joints within
+    1e-4 rad of Drake's error-controlled default at every logged sample; a bad name is refused."""
+    from pydrake.systems.analysis import RungeKutta3Integrator
+
+    euler = taught.simulator.get_integrator()   # (pydrake binds no ExplicitEulerIntegrator class to check)
+    assert euler.get_fixed_step_mode() and euler.get_maximum_step_size() == 1e-3
+    assert not isinstance(euler, RungeKutta3Integrator)
+    other = CollaborationSim(SimConfig(integrator="drake_default"), taught.library, subject.workspace())
+    assert isinstance(other.simulator.get_integrator(), RungeKutta3Integrator)
+    assert not other.simulator.get_integrator().get_fixed_step_mode()
+    demo = subject.by_task("bowl")[4]
+    a, log_a = taught.run_trial(demo)
+    b, log_b = other.run_trial(demo)
+    assert a.component == b.component is not None and a.commits == b.commits
+    n = min(len(log_a.q), len(log_b.q))
+    assert n > 50 and abs(len(log_a.q) - len(log_b.q)) <= 1   # logged every 1/32 s
+    np.testing.assert_allclose(log_a.q[:n], log_b.q[:n], rtol=0, atol=1e-4)   # measured 2.5e-6 (5e-6 over the tasks)
+    with pytest.raises(ValueError, match="SimConfig.integrator must be one of"):
+        SimConfig(integrator="rk45")
+
+
 def test_unknown_keeps_the_robot_still(subject):
     """Empty library: unknown; the joints stay within 1e-3 rad of their start (observed: ~1e-12)."""
     sim = CollaborationSim(SimConfig(unknown_hold_time=1.0), SkillLibrary(), subject.workspace())
