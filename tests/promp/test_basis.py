@@ -207,5 +207,8 @@ def test_trajectory_variance_is_the_diagonal_of_the_covariance():
         var = trajectory_variance(Sigma, basis, D, z=z, n_steps=100)
         assert var.shape == full.shape[:2]
         np.testing.assert_allclose(var, np.diagonal(full, axis1=1, axis2=2), rtol=0, atol=1e-12 * np.abs(full).max())
-    with pytest.raises(ValueError):
+    assert trajectory_variance(np.eye(10), GaussianBasis(5), 2).shape == (100, 2)   # 100 steps by default
+    with pytest.raises(ValueError, match=r"covariance must have shape \(10, 10\), got \(7, 7\)"):
         trajectory_variance(np.eye(7), GaussianBasis(5), 2)
+    with pytest.raises(ValueError, match="covariance has NaN"):
+        trajectory_variance(np.full((10, 10), np.nan), GaussianBasis(5), 2)
