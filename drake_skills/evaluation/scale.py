@@ -337,7 +337,7 @@ def evaluate_scale(settings: ScaleSettings | None = None, *, progress: bool = Tr
                      "component. Outcomes: the shape's held-out demonstrations over all orders (a Multi_Models shape "
                      "reuses other shapes' patterns, e.g. a trapezoid: its motion is then taught under two names)."))
         single = [k for k in shapes if not is_multi_model(k)]
-        single_fr = _fractions(np.sum([held[k] for k in single], axis=0)) if single else [None] * 4
+        single_fr = _fractions(np.sum([held[k] for k in single], axis=0)) if single else [None] * len(OUTCOMES)
         if single and len(single) < len(shapes):
             rep.tables["lasa"].caption += (
                 f" The {len(single)} single-pattern shapes (all but Multi_Models) over all orders: "

@@ -361,7 +361,8 @@ class RecognitionMixin:
         whole motion; None (default): as :meth:`recognize` reads it when it recognizes the
         motion here, the whole motion when ``component`` is given. ``variances_only``: each
         joint's per-step variance instead of the per-step covariance (what a controller that
-        bounds or shows each joint's spread needs, at about a fourth of the cost for 7 joints).
+        bounds or shows each joint's spread needs; about a fourth of the per-step covariance's
+        cost for 7 joints).
 
         Returns
         -------
@@ -430,7 +431,7 @@ class RecognitionMixin:
         Phi_o = self.config.basis_human.phi_span(f, y.shape[0])
         U = self._prefix_model().unshrink
         E = self._expert_cov(c)   # its human rows and columns seen through U (S^-1), the blocks only
-        cov_hh, cov_rh = (U @ E[:h, :])[:, :h] @ U.T, E[h:, :h] @ U.T
+        cov_hh, cov_rh = U @ E[:h, :h] @ U.T, E[h:, :h] @ U.T
         mean_w, cov_w = condition_blocks(U @ c.mean[:h], c.mean[h:], cov_hh, cov_rh, E[h:, h:], Phi_o, y,
                                          self._noise())
         return c.mean[h:], E[h:, h:], mean_w, cov_w

@@ -93,10 +93,11 @@ class SimConfig:
     seed: int = 0
     # time step of the discrete MultibodyPlant (s)
     time_step: float = 1e-3
-    # integrator of the Diagram's continuous state, which is only the controller's PID integral (the plant is
-    # discrete): "explicit_euler" or "runge_kutta2" in fixed steps of time_step, or "drake_default" (Drake's
-    # error-controlled third-order Runge-Kutta, which evaluates the controller three times per plant step:
-    # the full Diagram runs about 1.2x slower, with the same trials; BENCHMARKS.md, "Closed loop")
+    # integrator of the Diagram's continuous state, the controller's PID integral (and, over LCM, the simulated
+    # driver's torque filter; the plant is discrete): "explicit_euler" or "runge_kutta2" in fixed steps of
+    # time_step, or "drake_default" (Drake's error-controlled third-order Runge-Kutta, which evaluates the
+    # controller about three times per plant step: the full Diagram runs about 1.2x slower, with the same
+    # trials; BENCHMARKS.md, "Closed loop"). sim.diagram.configure_simulator applies it to a Simulator.
     integrator: str = "explicit_euler"
     # the skill library the robot starts with (empty) and teaches
     library: LibraryConfig = field(default_factory=LibraryConfig)

@@ -15,7 +15,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 from pydrake.geometry import Meshcat
-from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
+from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Diagram
 
 from drake_skills.data.demonstration import Demonstration
@@ -23,7 +23,7 @@ from drake_skills.library.incremental import SkillLibrary
 from drake_skills.library.labels import TaskVotes
 from drake_skills.data.workspace import Workspace
 from drake_skills.sim.config import SimConfig
-from drake_skills.sim.diagram import DiagramHandles, build_diagram
+from drake_skills.sim.diagram import DiagramHandles, build_diagram, configure_simulator
 from drake_skills.sim.models import FLANGE_FRAME, IIWA7_JOINT_LIMITS, IIWA7_VELOCITY_LIMITS
 from drake_skills.systems.wrist_source import WristTrial
 
@@ -236,9 +236,7 @@ class CollaborationSim:
         self.library = library
         self.workspace = workspace
         self.diagram, self.handles = self._build(meshcat)
-        self.simulator = Simulator(self.diagram)
-        if config.integrator != "drake_default":   # the PID integral in fixed plant steps (SimConfig.integrator)
-            ResetIntegratorFromFlags(self.simulator, config.integrator, config.time_step)
+        self.simulator = configure_simulator(Simulator(self.diagram), config)   # SimConfig.integrator
         self.context = self.simulator.get_mutable_context()
         h: DiagramHandles = self.handles
         self._plant_context = h.plant.GetMyContextFromRoot(self.context)

@@ -32,6 +32,7 @@ from pydrake.geometry import (CollisionFilterDeclaration, GeometrySet, Meshcat, 
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, MultibodyPlant
 from pydrake.multibody.tree import BodyIndex, Frame, ModelInstanceIndex
+from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
 from pydrake.systems.controllers import InverseDynamicsController
 from pydrake.systems.framework import Diagram, DiagramBuilder, OutputPort
 from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
@@ -139,6 +140,19 @@ def add_visualization(builder: DiagramBuilder, config: SimConfig, scene_graph: S
     return visualizer, marker
 
 
+def configure_simulator(simulator: Simulator, config: SimConfig) -> Simulator:
+    """Give ``simulator`` the integrator of ``config.integrator`` (:class:`~drake_skills.sim.config.SimConfig`).
+
+    The Diagram's continuous state is the controller's PID integral (and, over LCM, the simulated
+    driver's torque filter); the plant is discrete. "explicit_euler" and "runge_kutta2" integrate it
+    in fixed steps of ``config.time_step``; "drake_default" leaves Drake's error-controlled
+    integrator, which evaluates the controller about three times per plant step. Returns ``simulator``.
+    """
+    if config.integrator != "drake_default":
+        ResetIntegratorFromFlags(simulator, config.integrator, config.time_step)
+    return simulator
+
+
 def build_diagram(config: SimConfig, *, library: SkillLibrary, workspace: Workspace,
                   meshcat: Meshcat | None = None) -> tuple[Diagram, DiagramHandles]:
     """Build the closed loop: replayed wrist -> skill library -> controller -> IIWA7 plant.
@@ -157,6 +171,9 @@ def build_diagram(config: SimConfig, *, library: SkillLibrary, workspace: Worksp
     -------
     diagram : Diagram
     handles : DiagramHandles
+
+    A ``Simulator`` of your own gets Drake's default integrator: pass it to
+    :func:`configure_simulator` for ``config.integrator`` (what ``CollaborationSim`` does).
     """
     builder = DiagramBuilder()
     plant, scene_graph, iiwa, scene = add_salad_plant(builder, config)

@@ -86,12 +86,35 @@ def test_fixed_plant_steps_for_the_pid_integral_give_the_trial_of_drake_s_defaul
     demo = subject.by_task("bowl")[4]
     a, log_a = default.run_trial(demo)
     b, log_b = other.run_trial(demo)
+    # one evaluation of the Diagram's derivatives per step: explicit Euler (runge_kutta2 takes two), against about
+    # three and more for Drake's default
+    per_step = [s.simulator.get_integrator().get_num_derivative_evaluations()
+                / s.simulator.get_integrator().get_num_steps_taken()
+                for s in (default, other)]
+    assert per_step[0] == 1.0 and per_step[1] > 2.5, per_step
     assert a.component == b.component is not None and a.commits == b.commits
     n = min(len(log_a.q), len(log_b.q))
     assert n > 50 and abs(len(log_a.q) - len(log_b.q)) <= 1   # logged every 1/32 s
     np.testing.assert_allclose(log_a.q[:n], log_b.q[:n], rtol=0, atol=1e-4)   # measured 2.5e-6 (5e-6 over the tasks)
     with pytest.raises(ValueError, match="SimConfig.integrator must be one of"):
         SimConfig(integrator="rk45")
+
+
+def test_configure_simulator_gives_a_simulator_of_one_s_own_the_configured_integrator(subject):
+    """build_diagram + a Simulator of one's own: configure_simulator applies SimConfig.integrator (fixed 1 ms steps)
+    or, for "drake_default", leaves Drake's error-controlled Runge-Kutta; it returns the simulator it was given."""
+    from pydrake.systems.analysis import RungeKutta3Integrator
+
+    from drake_skills.sim.diagram import configure_simulator
+
+    diagram, _ = build_diagram(SimConfig(), library=SkillLibrary(), workspace=subject.workspace())
+    sim = Simulator(diagram)
+    assert configure_simulator(sim, SimConfig()) is sim
+    assert sim.get_integrator().get_fixed_step_mode() and sim.get_integrator().get_maximum_step_size() == 1e-3
+    sim.AdvanceTo(0.05)
+    assert sim.get_integrator().get_num_derivative_evaluations() == sim.get_integrator().get_num_steps_taken()
+    other = configure_simulator(Simulator(diagram), SimConfig(integrator="drake_default"))
+    assert isinstance(other.get_integrator(), RungeKutta3Integrator) and not other.get_integrator().get_fixed_step_mode()
 
 
 def test_unknown_keeps_the_robot_still(subject):
