@@ -56,9 +56,13 @@ PHASE_BAND = 1.5
 
 @lru_cache(maxsize=2048)
 def _basis_at(basis: GaussianBasis, f: float, m: int):
-    """Phi over ``m`` evenly spaced phases of ``[0, f]`` (m, N) and its Gram matrix (cached)."""
+    """Phi over ``m`` evenly spaced phases of ``[0, f]`` (m, N) and its Gram matrix (cached, read-only; prefix
+    scoring, and Eq. (13) on a prefix in ``RecognitionMixin._condition``)."""
     Phi = basis.phi(np.linspace(0.0, f, m))
-    return Phi, Phi.T @ Phi
+    G = Phi.T @ Phi
+    for a in (Phi, G):
+        a.setflags(write=False)
+    return Phi, G
 
 
 @lru_cache(maxsize=256)

@@ -31,7 +31,7 @@ from drake_skills.library.algorithm import (YOUNG_SUPPORT, ComponentModel, gatin
                                            single_demo_rule, two_sample_d2)
 from drake_skills.library.gain import scale_correction
 from drake_skills.library.novelty import Chi2Rule, chi2_ppf
-from drake_skills.library.prefix import PHASE_GRID, phase_band, score_at_phase, score_component, score_prefix
+from drake_skills.library.prefix import PHASE_GRID, _basis_at, phase_band, score_at_phase, score_component, score_prefix
 from drake_skills.library.prefix_bound import prefix_candidates
 from drake_skills.library.scale import (BEGINNING_FRACTIONS, beginning_blind, cross_covariance, main_task,
                                         mixed_share, observation_noise)
@@ -428,7 +428,7 @@ class RecognitionMixin:
         compared with (see :meth:`_prefix_model`).
         """
         h = self.n_human
-        Phi_o = self.config.basis_human.phi_span(f, y.shape[0])
+        Phi_o = _basis_at(self.config.basis_human, float(f), int(y.shape[0]))[0]   # cached with prefix scoring's
         U = self._prefix_model().unshrink
         E = self._expert_cov(c)   # its human rows and columns seen through U (S^-1), the blocks only
         cov_hh, cov_rh = U @ E[:h, :h] @ U.T, E[h:, :h] @ U.T

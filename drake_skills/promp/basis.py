@@ -75,11 +75,6 @@ class GaussianBasis:
         """Phi at ``n_steps`` evenly spaced phases over [0, 1] (cached, read-only)."""
         return _phi_uniform(self, int(n_steps))
 
-    def phi_span(self, end: float, n_steps: int) -> np.ndarray:
-        """Phi at ``n_steps`` evenly spaced phases over [0, ``end``] (cached, read-only): the phases of a
-        prefix that covers ``end`` of the motion, which conditioning asks for at every re-plan."""
-        return _phi_span(self, float(end), int(n_steps))
-
     def dict(self) -> dict:
         return {"n_basis": self.n_basis, "width": self.width, "normalized": self.normalized}
 
@@ -94,13 +89,6 @@ def phases(n_steps: int) -> np.ndarray:
 @lru_cache(maxsize=64)
 def _phi_uniform(basis: GaussianBasis, n_steps: int) -> np.ndarray:
     Phi = basis.phi(phases(n_steps))
-    Phi.setflags(write=False)
-    return Phi
-
-
-@lru_cache(maxsize=256)
-def _phi_span(basis: GaussianBasis, end: float, n_steps: int) -> np.ndarray:
-    Phi = basis.phi(np.linspace(0.0, end, n_steps))
     Phi.setflags(write=False)
     return Phi
 

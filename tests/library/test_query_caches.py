@@ -269,15 +269,19 @@ def test_conditioning_from_the_blocks_equals_conditioning_the_assembled_covarian
         np.testing.assert_allclose(got_cov, want_cov, rtol=1e-12, atol=1e-12 * np.abs(want_cov).max())
 
 
-def test_phi_span_is_the_basis_at_evenly_spaced_phases_and_read_only():
+def test_the_cached_basis_of_a_prefix_is_the_basis_at_evenly_spaced_phases_and_read_only():
+    """prefix._basis_at, which prefix scoring and Eq. (13) on a prefix (_condition) share: Phi over [0, f] and its Gram
+    matrix, the same objects on a second call, neither writable."""
     from drake_skills.promp.basis import GaussianBasis
 
     b = GaussianBasis(7)
-    P = b.phi_span(0.35, 23)
+    P, G = prefix._basis_at(b, 0.35, 23)
     np.testing.assert_array_equal(P, b.phi(np.linspace(0.0, 0.35, 23)))
-    assert b.phi_span(0.35, 23) is P and not P.flags.writeable
+    np.testing.assert_array_equal(G, P.T @ P)
+    again = prefix._basis_at(b, 0.35, 23)
+    assert again[0] is P and again[1] is G and not P.flags.writeable and not G.flags.writeable
     with pytest.raises(ValueError, match="phase must lie in"):
-        b.phi_span(1.5, 4)
+        prefix._basis_at(b, 1.5, 4)
 
 
 def test_predict_robot_variances_only_gives_the_diagonals_of_the_full_covariance():
