@@ -135,10 +135,12 @@ def score_phases(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarray
                                                                                   chol, D))
     J, _, N = Phi.shape
     K = means_h.shape[0]
-    Mt = means_h.reshape(K, D, N).transpose(0, 2, 1)       # (K, N, D)
-    r = y[None, None] - np.matmul(Phi[:, None], Mt[None])   # (J, K, m, D) residuals of the prior means
-    rr = np.sum(r * r, axis=(2, 3))
-    U = np.matmul(Phi.transpose(0, 2, 1)[:, None], r).transpose(0, 1, 3, 2)   # (J, K, D, N): u = H r
+    # every phase's prior means in one product, (J m, N) x (N, K D): the residuals laid out (J, m, K D), the
+    # samples tiled once per component (a broadcast over a short last axis costs several times more)
+    Mt = means_h.reshape(K, D, N).transpose(2, 0, 1).reshape(N, K * D)
+    r = np.tile(y, K)[None] - (Phi.reshape(J * m, N) @ Mt).reshape(J, m, K * D)
+    rr = np.einsum("jmc,jmc->jc", r, r).reshape(J, K, D).sum(axis=2)
+    U = np.matmul(Phi.transpose(0, 2, 1), r).reshape(J, N, K, D).transpose(0, 2, 3, 1)   # (J, K, D, N): u = H r
     v = np.matmul(U.reshape(J, K, D * N) @ chol, Q)                         # (J, K, h): Q^T L^T u
     c = np.asarray(inflate, float)[None, :, None]            # (1, K, 1)
     cl = c * lam[:, None, :]
@@ -162,7 +164,7 @@ def fit_statistic(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarra
     W, M, gam = fit_terms(basis, phases, int(m), chol, D, cache)
     d2 = np.ascontiguousarray(misfit_d2(y, phases, means_h, inflate, W, M, gam, basis, noise_var).T)   # (J, K)
     dof = seen_dof(basis, phases, int(m), D)  # at least D: the best-seen direction always counts
-    return d2, np.broadcast_to(dof[:, None], d2.shape).copy()
+    return d2, np.repeat(dof[:, None], d2.shape[1], axis=1)
 
 
 def misfit_d2(y: np.ndarray, phases: tuple, means_h: np.ndarray, inflate: np.ndarray, W: np.ndarray,
@@ -226,9 +228,15 @@ def fit_terms(basis: GaussianBasis, phases: tuple, m: int, chol: np.ndarray, D: 
 
 
 def seen_dof(basis: GaussianBasis, phases, m: int, D: int) -> np.ndarray:
-    """The fit statistic's degrees of freedom at each phase, shape (J,): D times the directions seen."""
-    return np.array([D * _seen_directions(basis, float(f), int(m), interaction.SEEN_RCOND)[1].size
-                     for f in phases], float)
+    """The fit statistic's degrees of freedom at each phase, shape (J,): D times the directions seen (read-only)."""
+    return _seen_dof(basis, tuple(float(f) for f in phases), int(m), int(D), interaction.SEEN_RCOND)
+
+
+@lru_cache(maxsize=256)
+def _seen_dof(basis: GaussianBasis, phases: tuple, m: int, D: int, rcond: float) -> np.ndarray:
+    out = np.array([D * _seen_directions(basis, f, m, rcond)[1].size for f in phases], float)
+    out.setflags(write=False)
+    return out
 
 
 def _fit_terms(basis: GaussianBasis, phases: tuple, m: int, chol: np.ndarray, D: int, most: int | None = None):

@@ -263,6 +263,16 @@ def test_a_beginning_is_resampled_to_its_fraction_of_n_samples_rounded_up_to_a_m
     assert recognition._prefix_samples(n, fraction) == expect
 
 
+def test_the_median_of_the_path_length_guesses_is_numpys_exactly():
+    """The beginning's sample count comes from the median guess: odd and even sizes, ties, one element."""
+    rng = np.random.default_rng(3)
+    cases = [np.array([0.4]), np.array([0.2, 0.9]), np.array([0.5, 0.5, 0.1]), np.array([1.0, 0.3, 0.3, 0.7])]
+    cases += [rng.uniform(0, 1, n) * s for n in range(1, 12) for s in (1e-3, 1.0, 7.0)]
+    for x in cases:
+        assert recognition._median(x) == float(np.median(x)), x
+    assert recognition._median(np.array([0.2, 0.9])) == 0.55
+
+
 def test_predict_robot_warns_of_a_whole_motion_spanning_little_but_not_of_a_short_beginning(taught):
     """The units guard: a whole motion (fraction 1) must span 1 unit of the scale 10; a beginning may span less."""
     human = synthetic_demo(0, np.random.default_rng(6), T=60).human
