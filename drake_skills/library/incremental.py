@@ -320,6 +320,27 @@ class SkillLibrary(RecognitionMixin, FileMixin):
         put_bounded(cache, key, (c.cluster, C), 64)  # a few d x d matrices, not one per component of a large library
         return C
 
+    def _seen_blocks(self, c: ComponentModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Component ``c``'s human mean and covariance blocks as observed samples see them (through ``U = S^-1``,
+        see ``_prefix_model``): ``U mu_h``, ``U E_hh U^T``, ``E_rh U^T`` of its expert covariance ``E`` (read-only),
+        kept as :meth:`_expert_cov` keeps ``E`` (every re-conditioning of a prefix asks for them again)."""
+        held = getattr(self, "_seen_cache", (None,))
+        if held[0] is not self._scale:
+            held = self._seen_cache = (self._scale, OrderedDict())
+        cache = held[1]
+        key = id(c.cluster)
+        hit = cache.get(key)  # one read: another thread may evict between two
+        if hit is not None and hit[0] is c.cluster:
+            return hit[1]
+        h = self.n_human
+        U = self._prefix_model().unshrink
+        E = self._expert_cov(c)
+        blocks = (U @ c.mean[:h], U @ E[:h, :h] @ U.T, E[h:, :h] @ U.T)
+        for a in blocks:
+            a.setflags(write=False)
+        put_bounded(cache, key, (c.cluster, blocks), 64)
+        return blocks
+
     def _cached(self, name: str, compute):
         """``compute()`` once per version of the library (components and scale are immutable, so identity is version)."""
         key = (self._components, self._scale)

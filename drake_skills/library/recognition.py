@@ -430,11 +430,9 @@ class RecognitionMixin:
         """
         h = self.n_human
         Phi_o = _basis_at(self.config.basis_human, float(f), int(y.shape[0]))[0]   # cached with prefix scoring's
-        U = self._prefix_model().unshrink
-        E = self._expert_cov(c)   # its human rows and columns seen through U (S^-1), the blocks only
-        cov_hh, cov_rh = U @ E[:h, :h] @ U.T, E[h:, :h] @ U.T
-        mean_w, cov_w = condition_blocks(U @ c.mean[:h], c.mean[h:], cov_hh, cov_rh, E[h:, h:], Phi_o, y,
-                                         self._noise())
+        E = self._expert_cov(c)
+        mean_h, cov_hh, cov_rh = self._seen_blocks(c)   # its human rows and columns seen through U (S^-1)
+        mean_w, cov_w = condition_blocks(mean_h, c.mean[h:], cov_hh, cov_rh, E[h:, h:], Phi_o, y, self._noise())
         return c.mean[h:], E[h:, h:], mean_w, cov_w
 
     def _correction(self, c: ComponentModel, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

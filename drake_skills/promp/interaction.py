@@ -98,8 +98,9 @@ def condition_blocks(mean_h, mean_x, cov_hh, cov_xh, cov_xx, Phi_o, y_obs, noise
     cov_new : array, shape (n, n)
     """
     G, u, _, A = _observation_terms(mean_h, cov_hh, Phi_o, y_obs, noise_var)
-    mean_new = mean_x + cov_xh @ np.linalg.solve(A, u)
-    cov_new = cov_xx - (cov_xh @ np.linalg.solve(A, G)) @ cov_xh.T
+    X = np.linalg.solve(A, np.column_stack([u, G]))   # A^-1 u and A^-1 G from one factorization
+    mean_new = mean_x + cov_xh @ X[:, 0]
+    cov_new = cov_xx - (cov_xh @ X[:, 1:]) @ cov_xh.T
     return mean_new, symmetrize(cov_new)
 
 

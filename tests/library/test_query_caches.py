@@ -207,6 +207,33 @@ def test_a_robot_covariance_cached_for_another_cluster_at_the_same_id_is_not_use
     np.testing.assert_allclose(cov2, cov, rtol=1e-12, atol=1e-12)
 
 
+def test_the_seen_blocks_of_a_component_survive_eviction_and_ignore_another_clusters_entry():
+    """Eq. (13) on a prefix (``_condition``, before the learned gains) reads each component's human blocks seen
+    through ``S^-1`` from a cache kept like the expert covariance's: an entry evicted by another thread right after
+    it was computed is still returned, and an entry at the same id holding another cluster is not used (it would
+    condition on the wrong skill); one holding the very cluster is."""
+    lib, rng = _lib()
+    y = lib.human_samples(synthetic_demo(0, rng).human[:40], observed_fraction=0.5)
+    c = lib._model(lib.components[0].id)
+
+    def conditioned():
+        return lib._condition(c, y, 0.5)[2:]
+
+    mean, cov = conditioned()
+    lib._seen_cache = (lib._scale, _EvictedByAnotherThread())
+    mean2, cov2 = conditioned()
+    np.testing.assert_allclose(mean2, mean, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(cov2, cov, rtol=1e-12, atol=1e-12)
+    h = lib.n_human
+    wrong = (np.ones(h), np.eye(h) * 1e3, np.ones((c.mean.size - h, h)))
+    lib._seen_cache = (lib._scale, OrderedDict((id(d.cluster), (object(), wrong)) for d in lib._components.items))
+    mean3, cov3 = conditioned()
+    np.testing.assert_allclose(mean3, mean, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(cov3, cov, rtol=1e-12, atol=1e-12)
+    lib._seen_cache = (lib._scale, OrderedDict([(id(c.cluster), (c.cluster, wrong))]))
+    assert np.abs(conditioned()[0] - mean).max() > 1e-3   # the cache is read: the very cluster's entry is used
+
+
 def test_a_library_that_learns_answers_a_beginning_from_new_caches():
     """Recognize a beginning (the prefix caches fill), learn 4 more demonstrations, recognize it again: the
     statistics equal those of a library restored from the state (no cache at all), not the old ones."""
