@@ -251,6 +251,26 @@ def test_a_library_that_learns_answers_a_beginning_from_new_caches():
                                                                    rtol=1e-6)
 
 
+def test_a_component_the_library_did_not_change_is_conditioned_on_the_new_scale_after_learning():
+    """Condition on a beginning with each component (the blocks seen through S^-1 are kept), teach 4 more
+    demonstrations of skill 0 only: the component of skill 1 keeps its cluster object but the shared scale moved,
+    so its conditioning must be that of a library restored from the state (no cache), not the kept one."""
+    lib, rng = _lib()
+    probe = synthetic_demo(1, rng).human[:45]
+    ids = [c.id for c in lib.components]
+    before = {k: lib.predict_robot(probe, 0.5, component=k)[0] for k in ids}
+    clusters = {c.id: c.cluster for c in lib._components.items}
+    for _ in range(4):
+        lib.partial_fit(synthetic_demo(0, rng))
+    kept = [c.id for c in lib._components.items if clusters.get(c.id) is c.cluster]
+    assert kept, "the stream must leave a component untouched for this test to mean anything"
+    fresh = SkillLibrary.from_state(lib.state())
+    for k in kept:
+        after = lib.predict_robot(probe, 0.5, component=k)[0]
+        np.testing.assert_allclose(after, fresh.predict_robot(probe, 0.5, component=k)[0], rtol=1e-12, atol=1e-12)
+        assert np.abs(after - before[k]).max() > 1e-6   # the scale moved: a kept entry would give the old answer
+
+
 def test_the_metric_an_update_leaves_behind_is_the_metric_of_the_library_s_scale_bit_for_bit():
     """partial_fit keeps the gating metric its last step factored (``Step.metric``) as the library's: it must be the
     metric of the committed scale (a stream of creations and updates; ``test_scale.py`` checks one with merges,
