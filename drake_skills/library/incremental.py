@@ -303,43 +303,49 @@ class SkillLibrary(RecognitionMixin, FileMixin):
         h = self.n_human
         return self._shared_cov()[:h, :h]
 
-    def _expert_cov(self, c: ComponentModel) -> np.ndarray:
-        """``(kappa Sigma + S_k) / (kappa + s_k - 1)``, kept until the library learns (a d x d product each)."""
-        held = getattr(self, "_expert_cache", (None,))
+    def _per_cluster(self, attr: str, c: ComponentModel, compute):
+        """``compute()`` for component ``c``, kept in ``self.<attr>`` until the library learns (its scale changes).
+
+        At most 64 entries (a few d x d matrices, not one per component of a large library), keyed by
+        ``id(c.cluster)`` with the cluster itself kept beside the value: a freed cluster's id reused by a
+        new one is not a hit. The entry is read once: another thread may evict it between two reads.
+        """
+        held = getattr(self, attr, (None,))
         if held[0] is not self._scale:
-            held = self._expert_cache = (self._scale, OrderedDict())
+            held = (self._scale, OrderedDict())
+            setattr(self, attr, held)
         cache = held[1]
         key = id(c.cluster)
-        hit = cache.get(key)  # one read: another thread may evict between two
+        hit = cache.get(key)
         if hit is not None and hit[0] is c.cluster:
             return hit[1]
-        k = self.config.expert_prior
-        C = (k * self._shared_cov() + c.cluster.scatter) / (k + c.support - 1.0)
-        C = 0.5 * (C + C.T)
-        C.setflags(write=False)
-        put_bounded(cache, key, (c.cluster, C), 64)  # a few d x d matrices, not one per component of a large library
-        return C
+        value = compute()
+        put_bounded(cache, key, (c.cluster, value), 64)
+        return value
+
+    def _expert_cov(self, c: ComponentModel) -> np.ndarray:
+        """``(kappa Sigma + S_k) / (kappa + s_k - 1)``, kept until the library learns (a d x d product each)."""
+        def compute():
+            k = self.config.expert_prior
+            C = (k * self._shared_cov() + c.cluster.scatter) / (k + c.support - 1.0)
+            C = 0.5 * (C + C.T)
+            C.setflags(write=False)
+            return C
+        return self._per_cluster("_expert_cache", c, compute)
 
     def _seen_blocks(self, c: ComponentModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Component ``c``'s human mean and covariance blocks as observed samples see them (through ``U = S^-1``,
         see ``_prefix_model``): ``U mu_h``, ``U E_hh U^T``, ``E_rh U^T`` of its expert covariance ``E`` (read-only),
         kept as :meth:`_expert_cov` keeps ``E`` (every re-conditioning of a prefix asks for them again)."""
-        held = getattr(self, "_seen_cache", (None,))
-        if held[0] is not self._scale:
-            held = self._seen_cache = (self._scale, OrderedDict())
-        cache = held[1]
-        key = id(c.cluster)
-        hit = cache.get(key)  # one read: another thread may evict between two
-        if hit is not None and hit[0] is c.cluster:
-            return hit[1]
-        h = self.n_human
-        U = self._prefix_model().unshrink
-        E = self._expert_cov(c)
-        blocks = (U @ c.mean[:h], U @ E[:h, :h] @ U.T, E[h:, :h] @ U.T)
-        for a in blocks:
-            a.setflags(write=False)
-        put_bounded(cache, key, (c.cluster, blocks), 64)
-        return blocks
+        def compute():
+            h = self.n_human
+            U = self._prefix_model().unshrink
+            E = self._expert_cov(c)
+            blocks = (U @ c.mean[:h], U @ E[:h, :h] @ U.T, E[h:, :h] @ U.T)
+            for a in blocks:
+                a.setflags(write=False)
+            return blocks
+        return self._per_cluster("_seen_cache", c, compute)
 
     def _cached(self, name: str, compute):
         """``compute()`` once per version of the library (components and scale are immutable, so identity is version)."""
