@@ -251,6 +251,38 @@ def test_a_library_that_learns_answers_a_beginning_from_new_caches():
                                                                    rtol=1e-6)
 
 
+def test_the_blocks_are_kept_read_only_and_a_second_call_returns_the_kept_ones():
+    """``_seen_blocks`` computes a component's blocks once per scale (the entry under ``id(cluster)`` holds the
+    cluster and the blocks), returns the very arrays again, and none of them can be written (a caller that changed
+    one would change every later conditioning)."""
+    lib, _ = _lib()
+    c = lib._model(lib.components[0].id)
+    first = lib._seen_blocks(c)
+    entry = lib._seen_cache[1][id(c.cluster)]
+    assert entry[0] is c.cluster and entry[1] is first
+    again = lib._seen_blocks(c)
+    assert all(a is b for a, b in zip(again, first))
+    assert not any(a.flags.writeable for a in first)
+
+
+def test_the_per_cluster_caches_hold_at_most_64_entries_and_compute_each_once():
+    """``_per_cluster`` (the expert covariance's and the seen blocks' cache): 70 clusters asked twice each in turn
+    compute 70 + 6 times (the 6 oldest evicted), and the cache keeps 64 entries."""
+    lib, _ = _lib()
+
+    class _Comp:
+        def __init__(self):
+            self.cluster = object()
+
+    comps = [_Comp() for _ in range(70)]
+    calls = []
+    for c in comps + comps[-64:] + comps[:6]:
+        lib._per_cluster("_test_cache", c, lambda c=c: calls.append(c) or ("value", c))
+    assert len(calls) == 70 + 6
+    assert len(lib._test_cache[1]) == 64
+    assert lib._per_cluster("_test_cache", comps[0], lambda: "computed again") == ("value", comps[0])
+
+
 def test_a_component_the_library_did_not_change_is_conditioned_on_the_new_scale_after_learning():
     """Condition on a beginning with each component (the blocks seen through S^-1 are kept), teach 4 more
     demonstrations of skill 0 only: the component of skill 1 keeps its cluster object but the shared scale moved,
