@@ -335,11 +335,11 @@ class SkillLibrary(RecognitionMixin, FileMixin):
 
     def _seen_blocks(self, c: ComponentModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Component ``c``'s human mean and covariance blocks as observed samples see them (through ``U = S^-1``,
-        see ``_prefix_model``): ``U mu_h``, ``U E_hh U^T``, ``E_rh U^T`` of its expert covariance ``E`` (read-only),
+        ``_unshrink_human``, see ``_prefix_model``): ``U mu_h``, ``U E_hh U^T``, ``E_rh U^T`` of its expert covariance ``E`` (read-only),
         kept as :meth:`_expert_cov` keeps ``E`` (every re-conditioning of a prefix asks for them again)."""
         def compute():
             h = self.n_human
-            U = self._prefix_model().unshrink
+            U = self._unshrink_human()
             E = self._expert_cov(c)
             blocks = (U @ c.mean[:h], U @ E[:h, :h] @ U.T, E[h:, :h] @ U.T)
             for a in blocks:

@@ -37,7 +37,7 @@ from drake_skills.library.scale import (BEGINNING_FRACTIONS, beginning_blind, cr
                                         mixed_share, observation_noise)
 from drake_skills.library.views import Recognition, StillMotionError, UnknownSkillError
 from drake_skills.promp.basis import GaussianBasis, ridge_weights, trajectory_covariance, trajectory_variance
-from drake_skills.promp.interaction import condition_blocks, condition_on_observations, conditioned_mean_shift
+from drake_skills.promp.interaction import condition_blocks, conditioned_mean_shift
 from drake_skills.promp.gaussian import inverse_lower
 from drake_skills.promp.preprocessing import restart_vertex
 
