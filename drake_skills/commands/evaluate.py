@@ -92,8 +92,12 @@ def register(sub) -> None:
     q.add_argument("--loo-orders", type=int, default=None,
                    help="orders per held-out interaction of the leave-one-out table (ipromps' protocol over every "
                         "interaction of the file, cut at a share of its samples; default 3, --quick: 1; 0 skips it)")
+    q.add_argument("--untaught-orders", type=int, default=None,
+                   help="orders per left-out task of the table untaught (each task in turn kept out of the "
+                        "training split and its interactions shown as a new task; default 5, --quick: 1; 0 skips it)")
     q.add_argument("--quick", action="store_true",
-                   help="reduced run: 2 orders (unless --orders), fractions 0.1, 0.5, 1.0, 1 leave-one-out order")
+                   help="reduced run: 2 orders (unless --orders), fractions 0.1, 0.5, 1.0, 1 leave-one-out order, "
+                        "1 order per untaught task")
     q.add_argument("--workers", type=int, default=available_workers(),
                    help="processes for the orders (default: available cores); results do not depend on it")
     q.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -134,6 +138,7 @@ def run_interaction(args: argparse.Namespace) -> int:
     if args.quick:
         kw.update(fractions=(0.1, 0.5, 1.0))
     kw["loo_orders"] = args.loo_orders if args.loo_orders is not None else (1 if args.quick else 3)
+    kw["untaught_orders"] = args.untaught_orders if args.untaught_orders is not None else (1 if args.quick else 5)
     rep = evaluate_interaction(InteractionSettings(**kw), workers=args.workers, progress=not args.no_progress)
     rep.summary["command"] = " ".join(["drake-skills", "eval", "interaction"] + sys.argv[3:])
     return _finish(rep, args.out, t0)

@@ -36,6 +36,12 @@ Protocol (one *order* = one random permutation of the training interactions):
    (:func:`best_guess`, what a classifier that always answers would say) beside the
    library's own answers. Steps 5 and 7 report the forced choice for comparison with
    classifiers that never abstain; the robot acts only on the library's answers.
+8. A new task (table ``untaught``, :func:`untaught_trial`): each task in turn left out of the
+   training split, a library learned from the other tasks' training interactions (workspace:
+   their bounding box), and every interaction of the left-out task (both splits) shown to it:
+   as a whole motion (``observed_fraction=1``) and replayed through the controller's decision
+   logic. The right answer is "unknown" (ask for a demonstration); a skill answer, a commit or a
+   skill executed is a wrong one. An open-ended library meets new tasks all the time.
 
 Figures are over orders x test interactions. Nothing here is tuned on the test split.
 """
@@ -50,7 +56,7 @@ from drake_skills.data.demonstration import Demonstration
 from drake_skills.data.interaction import column_selection, load_interactions
 from drake_skills.data.workspace import Workspace
 from drake_skills.evaluation.common import EvalReport, Table, run_trials, trial_rng
-from drake_skills.evaluation.labeled import CORRECT, UNKNOWN, WRONG, LabeledLibrary, outcome_fractions
+from drake_skills.evaluation.labeled import CORRECT, UNDECIDED, UNKNOWN, WRONG, LabeledLibrary, outcome_fractions
 from drake_skills.library.incremental import LibraryConfig
 from drake_skills.library.views import StillMotionError
 from drake_skills.promp.preprocessing import prefix_samples, resample_in_time
@@ -63,6 +69,7 @@ IPROMPS_WRIST = {0.1: 0.647, 0.3: 0.735, 0.5: 0.662}
 #: first ``int(ratio * T)`` of a recording's T samples, i.e. a share of its *time*.
 IPROMPS_RATIOS = (0.1, 0.2, 0.3, 0.4, 0.5)
 STREAM_LOO = 8
+STREAM_UNTAUGHT = 9
 OUTCOMES = ("correct", "wrong", "undecided", "unknown")
 #: Teaching orders: interleaved, or task by task.
 TEACHING = ("random", "row")
@@ -96,6 +103,9 @@ class InteractionSettings:
     #: Random orders per held-out interaction of the leave-one-out table (ipromps' protocol over
     #: every interaction of the file; 0 skips it).
     loo_orders: int = 3
+    #: Random orders per held-out task of the table ``untaught`` (each task left out of the training split in
+    #: turn, its interactions of both splits shown to the library as a new task; 0 skips it).
+    untaught_orders: int = 5
     #: Experiment seed (the orders).
     seed: int = 0
     #: Settings of every library (its workspace is replaced by the training bounding box).
@@ -105,7 +115,7 @@ class InteractionSettings:
         column_selection(self.columns, "InteractionSettings.columns")
         if self.teaching not in TEACHING:
             raise ValueError(f"InteractionSettings.teaching must be one of {TEACHING}, got {self.teaching!r}")
-        for name, lo in (("orders", 1), ("n_steps", 2), ("loo_orders", 0)):
+        for name, lo in (("orders", 1), ("n_steps", 2), ("loo_orders", 0), ("untaught_orders", 0)):
             v = getattr(self, name)
             if isinstance(v, bool) or int(v) != v or v < lo:
                 raise ValueError(f"InteractionSettings.{name} must be an integer >= {lo}, got {v!r}")
@@ -444,6 +454,49 @@ def loo_trial(ctx: InteractionContext, item: tuple[int, int]) -> LooResult:
     return LooResult(out, guess, path)
 
 
+@dataclass(frozen=True, eq=False)
+class UntaughtResult:
+    """One left-out task and order of :func:`untaught_trial`, per interaction of that task (both splits)."""
+
+    task: str
+    #: WRONG, UNKNOWN or UNDECIDED: the whole motion recognized (``observed_fraction=1``).
+    whole: np.ndarray
+    #: WRONG (a skill was committed to while the motion went on) or UNKNOWN (none).
+    first_commit: np.ndarray
+    #: Share of the person's path done at the first commit (NaN: none).
+    commit_fraction: np.ndarray
+    #: The skill the robot executes at the end: WRONG, UNKNOWN or UNDECIDED.
+    executed: np.ndarray
+
+
+def untaught_trial(ctx: InteractionContext, item: tuple[int, int]) -> UntaughtResult:
+    """A task the library was never taught: ``item`` is (index of the task in ``ctx.task_mean``, order).
+
+    The library (settings' ``library``; workspace the bounding box of the taught interactions' human
+    columns, as a robot deployed before the new task arrived would have it) learns the training
+    interactions of every other task in a random order (the settings' ``teaching``); then every
+    interaction of the left-out task, of both splits, is recognized as a whole motion and replayed through
+    the controller's decision logic (:func:`replayed_commit`). No component carries the left-out task's name,
+    so any skill answer is WRONG.
+    """
+    s = ctx.settings
+    ti, order = item
+    task = list(ctx.task_mean)[ti]
+    taught = tuple(d for d in ctx.train if d.task != task)
+    shown = tuple(d for d in ctx.train + ctx.test if d.task == task)
+    ws = workspace_of(taught)
+    lab = LabeledLibrary(replace(s.library, workspace=ws))
+    rng = trial_rng(s.seed, ti * 1000 + order, STREAM_UNTAUGHT)
+    for j in teaching_order([d.task for d in taught], rng, s.teaching):
+        lab.teach(taught[j])
+    n = len(shown)
+    whole, first, share, executed = (np.empty(n, int), np.empty(n, int), np.full(n, np.nan), np.empty(n, int))
+    for i, d in enumerate(shown):
+        whole[i] = lab.classify(d.human, task)[0]
+        first[i], share[i], executed[i], _ = replayed_commit(lab, d, ws)
+    return UntaughtResult(task, whole, first, share, executed)
+
+
 def _path_share(demo: Demonstration, workspace: Workspace, cfg: LibraryConfig):
     from drake_skills.sim.demo import path_progress
 
@@ -579,6 +632,7 @@ def evaluate_interaction(settings: InteractionSettings, *, workers: int = 1, pro
                                   "ipromps: chenlx92/ipromps, 4 real handover tasks, leave-one-out, wrist only, "
                                   "always answers; its fraction is a share of time (see the table loo)."))
     loo = _loo_table(ctx, s, workers, progress) if s.loo_orders else None
+    untaught = _untaught_table(ctx, s, workers, progress) if s.untaught_orders and len(tasks) > 1 else None
 
     D2 = np.stack([t.d2_min for t in trials])
     thr = np.stack([t.d2_threshold for t in trials])
@@ -620,7 +674,7 @@ def evaluate_interaction(settings: InteractionSettings, *, workers: int = 1, pro
     rep = EvalReport("Real human-robot interactions", {
         "recognition": recognition, "components": components, "response": response,
         "anticipation": anticipation, "commits": commits, "test_interactions": per_test}
-                    | ({"loo": loo[0]} if loo else {}))
+                    | ({"loo": loo[0]} if loo else {}) | ({"untaught": untaught[0]} if untaught else {}))
     c, w, d_, u = _fractions(out)
     allr = err_by_task["all"]
     rep.summary = {
@@ -640,6 +694,7 @@ def evaluate_interaction(settings: InteractionSettings, *, workers: int = 1, pro
                     "executed": dict(zip(OUTCOMES, _fractions(X)))},
         "forced_choice": {str(f): float(np.mean(G[:, :, k] == CORRECT)) for k, f in enumerate(s.fractions)},
         **({"loo": loo[1]} if loo else {}),
+        **({"untaught": untaught[1]} if untaught else {}),
         "goals": {"correct >= 0.95": c >= 0.95, "wrong <= 0.02": w <= 0.02,
                   "4 <= components <= 6": bool(4 <= K.mean() <= 6),
                   "conditioned response below task mean": bool(allr[0] < allr[2])},
@@ -678,6 +733,43 @@ def _loo_table(ctx: InteractionContext, s: InteractionSettings, workers: int, pr
                            "Forced choice: best_guess, what a classifier that always answers would say (ipromps "
                            "does); the last four columns are the library's own answers. A recording that "
                            "starts at rest has covered little of its path at a small share of its time."))
+    return table, summary
+
+
+def _untaught_table(ctx: InteractionContext, s: InteractionSettings, workers: int, progress: bool):
+    """The table ``untaught`` (:func:`untaught_trial`, every task left out in turn) and its summary entry."""
+    tasks = list(ctx.task_mean)
+    items = [(t, o) for t in range(len(tasks)) for o in range(s.untaught_orders)]
+    res = run_trials(untaught_trial, items, ctx, workers=workers, desc="interaction: untaught tasks",
+                     progress=progress)
+    rows, summary = [], {}
+    for task in tasks + ["all"]:
+        mine = [r for r in res if task in ("all", r.task)]
+        W = np.concatenate([r.whole for r in mine])
+        F = np.concatenate([r.first_commit for r in mine])
+        S = np.concatenate([r.commit_fraction for r in mine])
+        X = np.concatenate([r.executed for r in mine])
+        started = float(np.mean(F == WRONG))
+        entry = {"motions": int(W.size), "whole_wrong": float(np.mean(W == WRONG)),
+                 "whole_unknown": float(np.mean(W == UNKNOWN)), "whole_undecided": float(np.mean(W == UNDECIDED)),
+                 "started": started,
+                 "median_path_share_at_start": float(np.median(S[F == WRONG])) if (F == WRONG).any() else None,
+                 "executed_wrong": float(np.mean(X == WRONG)), "executed_none": float(np.mean(X != WRONG))}
+        summary[task] = entry
+        rows.append([task, entry["motions"], entry["whole_wrong"], entry["whole_undecided"], entry["whole_unknown"],
+                     started, "-" if entry["median_path_share_at_start"] is None
+                     else entry["median_path_share_at_start"], entry["executed_wrong"]])
+    table = Table(["task left out", "motions (x orders)", "whole: wrong", "whole: undecided", "whole: unknown",
+                   "controller started a response", "median path share at the start", "controller executed a skill"],
+                  rows,
+                  caption=(f"A new task: each task left out of the training split in turn ({s.untaught_orders} random "
+                           "orders of the other tasks' training interactions; workspace: their bounding box), and every "
+                           "interaction of the left-out task, of both splits, shown to the library. The right answer is "
+                           "'unknown' (ask for a demonstration). Whole: recognized as a whole motion "
+                           "(observed_fraction=1). Controller: replayed through the decision logic (as the table "
+                           "commits): 'started' is a commit to some skill while the person moved (the robot begins "
+                           "that skill's response), 'executed' the skill it runs at the end (a start revised in time "
+                           "is not executed)."))
     return table, summary
 
 

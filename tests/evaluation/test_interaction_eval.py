@@ -75,6 +75,22 @@ def test_cli_eval_interaction_reports_no_wrong_answer_and_few_components(tmp_pat
         assert abs(sum(float(r[header.index(o)]) for o in ("correct", "wrong", "undecided", "unknown")) - 1) < 1e-9
     assert set(s["loo"]) == {"0.1", "0.2", "0.3", "0.4", "0.5"} and set(s["forced_choice"]) == {"0.1", "0.5", "1.0"}
     assert "## loo" in printed
+    # a new task (1 order per left-out task, --quick): every interaction of the file shown once, as a task the
+    # library never learned. Measured: whole motions 0.098 wrong (2 of 10 hand shakes taken for a parachute, 2 of 11
+    # parachutes for a hand shake; waves and rockets all unknown), the robot executing a skill at the end 0.12;
+    # the bounds leave a motion or two of room
+    u = s["untaught"]
+    assert set(u) == {"hand_wave", "hand_shake", "rocket", "parachute", "all"} and u["all"]["motions"] == 41
+    assert sum(u[t]["motions"] for t in u if t != "all") == 41
+    for t, e in u.items():
+        assert abs(e["whole_wrong"] + e["whole_undecided"] + e["whole_unknown"] - 1) < 1e-12, t
+        assert abs(e["executed_wrong"] + e["executed_none"] - 1) < 1e-12, t
+        assert 0.0 <= e["started"] <= 1.0, t
+    assert u["hand_wave"]["whole_unknown"] == 1.0 and u["rocket"]["whole_unknown"] == 1.0
+    assert u["all"]["whole_wrong"] <= 0.15 and u["all"]["executed_wrong"] <= 0.2
+    header, rows = _rows(out / "untaught.csv")
+    assert rows[-1][0] == "all" and int(rows[-1][header.index("motions (x orders)")]) == 41
+    assert "## untaught" in printed
 
 
 def test_prefix_is_cut_at_the_true_fraction_of_the_librarys_own_path_length():
@@ -142,6 +158,8 @@ def test_settings_reject_bad_values():
         InteractionSettings(teaching="shuffled")
     with pytest.raises(ValueError, match="loo_orders must be an integer >= 0"):
         InteractionSettings(loo_orders=-1)
+    with pytest.raises(ValueError, match="untaught_orders must be an integer >= 0"):
+        InteractionSettings(untaught_orders=1.5)
 
 
 def test_best_guess_is_the_best_explaining_component_else_the_most_probable_of_all():
@@ -266,6 +284,52 @@ def test_replay_commits_commits_to_a_taught_skill_early_and_holds_for_an_untaugh
     g, at_rest = replay_commits(lib, bank.demo(3, rng), identity)
     assert g.final and not at_rest and g.component is None and g.status == "unknown" and not g.commits
     assert np.isnan(commit_share(bank.demo(3, rng), identity, 0.1, g.commit_time))
+
+
+def test_untaught_trial_shows_every_motion_of_the_left_out_task_to_a_library_without_it():
+    """A new task: the library learns the other tasks only, and well-separated motions of the new one are unknown,
+    never committed to nor executed; the left-out task's motions of both splits are the ones shown."""
+    from drake_skills.data.synthetic import skill_bank
+    from drake_skills.evaluation.interaction import untaught_trial
+    from drake_skills.evaluation.labeled import UNKNOWN
+
+    bank = skill_bank(3, 0, separation=3.0)
+    rng = np.random.default_rng(2)
+    train = [bank.demo(k, rng) for _ in range(3) for k in range(3)]
+    test = [bank.demo(k, rng) for k in range(3) for _ in range(2)]
+    ctx = InteractionContext.from_splits(train, test, InteractionSettings(data="synthetic", orders=1))
+    assert list(ctx.task_mean) == ["0", "1", "2"]
+    for ti in range(3):
+        r = untaught_trial(ctx, (ti, 0))
+        assert r.task == str(ti)
+        assert r.whole.shape == r.first_commit.shape == r.executed.shape == (5,)   # 3 training + 2 test motions
+        assert (r.whole == UNKNOWN).all() and (r.first_commit == UNKNOWN).all() and (r.executed == UNKNOWN).all()
+        assert np.isnan(r.commit_fraction).all()
+        # the same item, the same result (its order comes from the item)
+        again = untaught_trial(ctx, (ti, 0))
+        assert np.array_equal(again.whole, r.whole) and np.array_equal(again.executed, r.executed)
+
+
+def test_untaught_trial_counts_a_skill_answer_for_the_new_task_as_wrong():
+    """A new task whose motions are another task's (the same skill, a new name): every motion is a wrong answer,
+    committed to and executed; the robot never learned a skill of that name."""
+    from drake_skills.data.synthetic import skill_bank
+    from drake_skills.evaluation.interaction import untaught_trial
+
+    bank = skill_bank(2, 0, separation=3.0)
+    rng = np.random.default_rng(3)
+
+    def named(k, task):
+        d = bank.demo(k, rng)
+        return Demonstration(d.t, d.human, d.robot, task=task, name=f"{task}:{k}")
+
+    train = [named(0, "a") for _ in range(3)] + [named(1, "b") for _ in range(3)] + [named(0, "copy") for _ in range(2)]
+    test = [named(0, "a"), named(1, "b"), named(0, "copy")]
+    ctx = InteractionContext.from_splits(train, test, InteractionSettings(data="synthetic", orders=1))
+    r = untaught_trial(ctx, (list(ctx.task_mean).index("copy"), 0))
+    assert r.whole.shape == (3,)
+    assert (r.whole == WRONG).all() and (r.executed == WRONG).all() and (r.first_commit == WRONG).all()
+    assert ((r.commit_fraction > 0) & (r.commit_fraction < 1)).all()
 
 
 def _tasked(task: str, k: int) -> Demonstration:
