@@ -18,7 +18,7 @@ Three measurements, each with the library as it is (``shared``) and with the var
 
 ::
 
-    .venv/bin/python benchmarks/own_scatter.py          # about 1 min on the shared 2-core machine
+    .venv/bin/python benchmarks/own_scatter.py          # about 30 s on the shared 2-core machine
 """
 from __future__ import annotations
 
@@ -45,7 +45,7 @@ def _own_scatter(comps, metric, h: int, kappa: float):
     log-determinants (K,) of the widened covariances (relative to the shared one)."""
     parts, rmax = [], 1
     for c in comps.items:
-        if c.support < 1.5:      # one demonstration: no scatter of its own
+        if c.support < 1.5:      # one demonstration (algorithm.YOUNG_SUPPORT): no scatter of its own
             parts.append((np.zeros((h, 0)), 0.0))
             continue
         U, sv, _ = np.linalg.svd(metric.inv_chol @ c.cluster.factor[:h], full_matrices=False)

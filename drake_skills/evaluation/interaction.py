@@ -459,6 +459,8 @@ class UntaughtResult:
     """One left-out task and order of :func:`untaught_trial`, per interaction of that task (both splits)."""
 
     task: str
+    #: The interactions shown (``Demonstration.name``), training split first.
+    names: tuple
     #: WRONG, UNKNOWN or UNDECIDED: the whole motion recognized (``observed_fraction=1``).
     whole: np.ndarray
     #: WRONG (a skill was committed to while the motion went on) or UNKNOWN (none).
@@ -494,7 +496,7 @@ def untaught_trial(ctx: InteractionContext, item: tuple[int, int]) -> UntaughtRe
     for i, d in enumerate(shown):
         whole[i] = lab.classify(d.human, task)[0]
         first[i], share[i], executed[i], _ = replayed_commit(lab, d, ws)
-    return UntaughtResult(task, whole, first, share, executed)
+    return UntaughtResult(task, tuple(d.name for d in shown), whole, first, share, executed)
 
 
 def _path_share(demo: Demonstration, workspace: Workspace, cfg: LibraryConfig):
@@ -562,7 +564,8 @@ def evaluate_interaction(settings: InteractionSettings, *, workers: int = 1, pro
     -------
     EvalReport
         Tables ``recognition``, ``components``, ``response``, ``anticipation``,
-        ``commits``, ``test_interactions``; figure ``interaction``.
+        ``commits``, ``test_interactions``, ``loo`` (unless ``loo_orders`` is 0) and ``untaught``
+        (unless ``untaught_orders`` is 0 or the file holds one task); figure ``interaction``.
     """
     s = settings
     ctx = context if context is not None else InteractionContext.of(s)
@@ -762,8 +765,8 @@ def _untaught_table(ctx: InteractionContext, s: InteractionSettings, workers: in
     table = Table(["task left out", "motions (x orders)", "whole: wrong", "whole: undecided", "whole: unknown",
                    "controller started a response", "median path share at the start", "controller executed a skill"],
                   rows,
-                  caption=(f"A new task: each task left out of the training split in turn ({s.untaught_orders} random "
-                           "orders of the other tasks' training interactions; workspace: their bounding box), and every "
+                  caption=(f"A new task: each task left out of the training split in turn (random orders of the other "
+                           f"tasks' training interactions: {s.untaught_orders} per task; workspace: their bounding box), and every "
                            "interaction of the left-out task, of both splits, shown to the library. The right answer is "
                            "'unknown' (ask for a demonstration). Whole: recognized as a whole motion "
                            "(observed_fraction=1). Controller: replayed through the decision logic (as the table "

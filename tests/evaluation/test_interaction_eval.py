@@ -84,8 +84,8 @@ def test_cli_eval_interaction_reports_no_wrong_answer_and_few_components(tmp_pat
     assert sum(u[t]["motions"] for t in u if t != "all") == 41
     for t, e in u.items():
         assert abs(e["whole_wrong"] + e["whole_undecided"] + e["whole_unknown"] - 1) < 1e-12, t
-        assert abs(e["executed_wrong"] + e["executed_none"] - 1) < 1e-12, t
-        assert 0.0 <= e["started"] <= 1.0, t
+        # what the robot executes at the end includes the whole-motion answer's wrong skills (measured: 4 of 5)
+        assert e["executed_wrong"] >= e["whole_wrong"] - 1 / e["motions"] - 1e-12, t
     assert u["hand_wave"]["whole_unknown"] == 1.0 and u["rocket"]["whole_unknown"] == 1.0
     assert u["all"]["whole_wrong"] <= 0.15 and u["all"]["executed_wrong"] <= 0.2
     header, rows = _rows(out / "untaught.csv")
@@ -302,12 +302,12 @@ def test_untaught_trial_shows_every_motion_of_the_left_out_task_to_a_library_wit
     for ti in range(3):
         r = untaught_trial(ctx, (ti, 0))
         assert r.task == str(ti)
-        assert r.whole.shape == r.first_commit.shape == r.executed.shape == (5,)   # 3 training + 2 test motions
+        # every motion of the task, of both splits (the synthetic names carry the task only: counted per split)
+        assert r.whole.shape == r.first_commit.shape == r.executed.shape == (5,)
+        assert list(r.names) == [d.name for d in train if d.task == str(ti)] + [d.name for d in test
+                                                                              if d.task == str(ti)]
         assert (r.whole == UNKNOWN).all() and (r.first_commit == UNKNOWN).all() and (r.executed == UNKNOWN).all()
         assert np.isnan(r.commit_fraction).all()
-        # the same item, the same result (its order comes from the item)
-        again = untaught_trial(ctx, (ti, 0))
-        assert np.array_equal(again.whole, r.whole) and np.array_equal(again.executed, r.executed)
 
 
 def test_untaught_trial_counts_a_skill_answer_for_the_new_task_as_wrong():
@@ -325,11 +325,18 @@ def test_untaught_trial_counts_a_skill_answer_for_the_new_task_as_wrong():
 
     train = [named(0, "a") for _ in range(3)] + [named(1, "b") for _ in range(3)] + [named(0, "copy") for _ in range(2)]
     test = [named(0, "a"), named(1, "b"), named(0, "copy")]
+    # names that say the split, to check which motions are shown
+    train = [Demonstration(d.t, d.human, d.robot, task=d.task, name=f"{d.task}:train:{i}") for i, d in enumerate(train)]
+    test = [Demonstration(d.t, d.human, d.robot, task=d.task, name=f"{d.task}:test:{i + len(train)}")
+            for i, d in enumerate(test)]
     ctx = InteractionContext.from_splits(train, test, InteractionSettings(data="synthetic", orders=1))
     r = untaught_trial(ctx, (list(ctx.task_mean).index("copy"), 0))
-    assert r.whole.shape == (3,)
+    assert r.names == ("copy:train:6", "copy:train:7", "copy:test:10")
     assert (r.whole == WRONG).all() and (r.executed == WRONG).all() and (r.first_commit == WRONG).all()
     assert ((r.commit_fraction > 0) & (r.commit_fraction < 1)).all()
+    # the same item, the same result: its order comes from the item (the commit shares depend on the library)
+    again = untaught_trial(ctx, (list(ctx.task_mean).index("copy"), 0))
+    np.testing.assert_array_equal(again.commit_fraction, r.commit_fraction)
 
 
 def _tasked(task: str, k: int) -> Demonstration:
