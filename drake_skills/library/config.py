@@ -382,11 +382,22 @@ class LibraryConfig:
 
     @property
     def basis_human(self) -> GaussianBasis:
-        return GaussianBasis(self.n_basis_human, self.basis_width, self.basis_normalized)
+        return self._basis("_basis_human", self.n_basis_human)
 
     @property
     def basis_robot(self) -> GaussianBasis:
-        return GaussianBasis(self.n_basis_robot, self.basis_width, self.basis_normalized)
+        return self._basis("_basis_robot", self.n_basis_robot)
+
+    def _basis(self, slot: str, n_basis: int) -> GaussianBasis:
+        """The basis of ``n_basis`` functions; a sealed config (a library's: it cannot change) keeps it, since every
+        recognition asks for it several times (a tenth of a prefix recognition's time went into building them)."""
+        hit = self.__dict__.get(slot)
+        if hit is not None:
+            return hit
+        basis = GaussianBasis(n_basis, self.basis_width, self.basis_normalized)
+        if self.__dict__.get("_sealed"):
+            object.__setattr__(self, slot, basis)
+        return basis
 
 
 def _as_workspace(ws) -> Optional[Workspace]:
