@@ -128,6 +128,15 @@ def score_phases(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarray
     -------
     loglik, d2, dof : arrays, shape (J, K)
     """
+    phases = tuple(float(f) for f in phases)
+    loglik = prefix_loglik(y, phases, means_h, inflate, chol, basis, noise_var, cache)
+    d2, dof = fit_statistic(y, phases, means_h, inflate, chol, basis, noise_var, cache)
+    return loglik, d2, dof
+
+
+def prefix_loglik(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarray, chol: np.ndarray,
+                  basis: GaussianBasis, noise_var: float, cache: dict | None = None) -> np.ndarray:
+    """The log-likelihoods (J, K) of :func:`score_phases` alone (its parameters), without the fit statistic."""
     m, D = y.shape
     phases = tuple(float(f) for f in phases)
     Phi = _basis_terms(basis, phases, int(m))[0]
@@ -147,9 +156,27 @@ def score_phases(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarray
     explained = c[..., 0] * np.sum(v * v / (noise_var + cl), axis=2)
     d2_obs = (rr - explained) / noise_var
     logdet = np.sum(np.log1p(cl / noise_var), axis=2)
-    loglik = -0.5 * (m * D * (_LOG_2PI + np.log(noise_var)) + logdet + d2_obs)
-    d2, dof = fit_statistic(y, phases, means_h, inflate, chol, basis, noise_var, cache)
-    return loglik, d2, dof
+    return -0.5 * (m * D * (_LOG_2PI + np.log(noise_var)) + logdet + d2_obs)
+
+
+def loglik_one(y: np.ndarray, phases: tuple, mean_h: np.ndarray, chol: np.ndarray, basis: GaussianBasis,
+               noise_var: float, cache: dict | None = None) -> np.ndarray:
+    """:func:`prefix_loglik` of one Gaussian (``mean_h`` (h,), covariance ``chol chol^T``, no inflation), shape (J,).
+
+    The same quantities laid out for a single model: a tenth of the array reshaping, half the time.
+    """
+    m, D = y.shape
+    Phi = _basis_terms(basis, phases, int(m))[0]                             # (J, m, N)
+    lam, Q = _per_phase(cache, "gram", phases, int(m), lambda fs: _whitened_gram(_basis_terms(basis, fs, int(m))[1],
+                                                                                  chol, D))
+    J, _, N = Phi.shape
+    r = y[None] - Phi @ mean_h.reshape(D, N).T                               # (J, m, D)
+    rr = np.einsum("jmd,jmd->j", r, r)
+    u = np.matmul(Phi.transpose(0, 2, 1), r).transpose(0, 2, 1).reshape(J, 1, D * N)   # (J, 1, D N): H r
+    v = np.matmul(u @ chol, Q)[:, 0]                                         # (J, h)
+    d2_obs = (rr - np.sum(v * v / (noise_var + lam), axis=1)) / noise_var
+    logdet = np.sum(np.log1p(lam / noise_var), axis=1)
+    return -0.5 * (m * D * (_LOG_2PI + np.log(noise_var)) + logdet + d2_obs)
 
 
 def fit_statistic(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarray, chol: np.ndarray,
