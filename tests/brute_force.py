@@ -238,7 +238,7 @@ class Reference:
         return {k: tuple(v) if isinstance(v, list) else v for k, v in out.items()}
 
     # ------------------------------------------------------------- recognition
-    def _decide(self, logp, d2, dof, phases, has_robot, shared_cov, shares=None, records=None):
+    def _decide(self, logp, d2, dof, phases, has_robot, shared_cov, shares=None, records=None, new_ll=None):
         """``records``: the library's records of beginnings by component id, ``{id: (tested, missed)}`` (the
         reference learns from weights alone, so it cannot keep them); with ``shares`` (K,), a beginning."""
         cfg = self.cfg
@@ -279,8 +279,16 @@ class Reference:
                     blind.append(c.id)
             if blind:
                 status, comp = "undecided", None
+        new_skill = 0.0
+        if status == "skill" and new_ll is not None and phases[best] < recognition.NEW_SKILL_PHASE:
+            # a skill never taught, weighed against the components kept (LibraryConfig.new_skill_weight)
+            kept = np.flatnonzero(post > 0)
+            terms = [np.log(support[k]) + logp[k] for k in kept] + [np.log(cfg.new_skill_weight) + new_ll]
+            new_skill = float(np.exp(terms[-1] - logsumexp(terms)))
+            if new_skill >= cfg.decision_risk:
+                status, comp = "undecided", None
         return dict(component=comp, ids=ids, responsibilities=resp, log_likelihoods=logp, mahalanobis_sq=d2,
-                    dof=dof, status=status, phases=phases, posterior=post, blind=tuple(blind))
+                    dof=dof, status=status, phases=phases, posterior=post, blind=tuple(blind), new_skill=new_skill)
 
     def _same(self, best, candidates, has_robot, shared_cov):
         h = self.h
@@ -342,4 +350,21 @@ class Reference:
             j = int(np.argmax(lps))
             logp[i] = logsumexp(lps) - np.log(len(band))  # the phase marginalized over the band
             d2[i], dof[i], phases[i] = stats[j][1], stats[j][2], band[j]
-        return self._decide(logp, d2, dof, phases, has_robot, shared_cov, shares, records)
+        new_ll = None
+        if cfg.new_skill_weight > 0:
+            # a skill never taught: the population of every demonstration (mean; spread per weight plus the
+            # shared within-skill covariance), its path the support-weighted mean of the components', the phase
+            # marginalized over its band as a component's
+            sc = self.scale
+            cov0 = metric[0] + np.diag(sc.total_m2[:h] / max(sc.n - 1, 1))
+            support = self._support()
+            length0 = float(np.sum(support * [c.cluster.path_length for c in self.items]) / support.sum())
+            g = min(max(length / max(length0, 1e-12), grid[0]), 1.0)
+            band = [f for f in grid if g / PHASE_BAND - 1e-12 <= f <= min(g * PHASE_BAND, 1.0) + 1e-12]
+            nearest = float(grid[np.abs(grid - g).argmin()])
+            if nearest not in band:
+                band = sorted(band + [nearest])
+            lps = [prefix_statistics(U @ sc.total_mean[:h], U @ cov0 @ U.T, cfg.basis_human.phi(np.linspace(0.0, f, m)),
+                                     ys, self._noise())[0] for f in band]
+            new_ll = logsumexp(lps) - np.log(len(band))
+        return self._decide(logp, d2, dof, phases, has_robot, shared_cov, shares, records, new_ll)

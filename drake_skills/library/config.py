@@ -208,6 +208,21 @@ class LibraryConfig:
     #: Largest probability of a wrong skill that recognition accepts: below
     #: ``1 - decision_risk`` posterior for the best candidate the answer is "undecided".
     decision_risk: float = 0.01
+    #: A beginning (recognition with the phase estimated) may begin a skill the library was never taught.
+    #: That hypothesis has this weight, in demonstrations, beside each component's support, and as its model
+    #: the population of every demonstration seen (their mean, their per-weight spread plus the shared
+    #: within-skill covariance; its phase searched like a component's). While it holds at least
+    #: ``decision_risk`` of the posterior, a beginning one skill explains is "undecided"
+    #: (``Recognition.new_skill``). Whole motions, and beginnings past 90 % of their best skill's path
+    #: (``recognition.NEW_SKILL_PHASE``), are judged by the novelty test alone. 1: a skill never taught
+    #: is as probable, before the motion is seen, as a skill seen once. Measured on development data (the
+    #: buetepage training split, each task left out in turn; the salad demo's streams, seeds 0-1): the
+    #: controller started a response to a new task's motion in 78 % -> 50 % and 45 -> 14 of 100 (4: 41 %, 6),
+    #: its commits on taught tasks at a median 66 % -> 75 % and 51 % -> 52 % of the path (4: 75 %, 54 %), no
+    #: wrong answer added (RESULTS.md, "A skill never taught, as a hypothesis"). 0 turns it off (files written
+    #: before 2026-12-07 load with 0). A deviation from the paper, which answers from a beginning whenever a
+    #: skill explains it.
+    new_skill_weight: float = 1.0
     #: While the shared within-skill scale is more prior than data (pooled degrees of freedom below
     #: ``prior_strength``), a component learned from a single demonstration (support below 1.5)
     #: explains a motion at run time, takes a demonstration and merges only within this chi-square
@@ -285,7 +300,7 @@ class LibraryConfig:
                    "consolidation", "delete_min_support", "resample_tolerance", "prior_floor", "novelty_quantile",
                    "merge_quantile", "split_quantile", "decision_risk", "shrinkage", "log_T_nov", "log_T_merge",
                    "single_demo_quantile", "split_within_share", "mixed_task_share", "other_task_reach",
-                   "same_task_reach")
+                   "same_task_reach", "new_skill_weight")
         for name in numbers:
             v = getattr(self, name)
             if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)):
@@ -295,7 +310,8 @@ class LibraryConfig:
             v = getattr(self, name)
             if not np.isfinite(v) or v <= 0:
                 raise ValueError(f"LibraryConfig.{name} must be positive, got {v!r}")
-        for name in ("ridge", "consolidation", "delete_min_support", "resample_tolerance", "prior_floor"):
+        for name in ("ridge", "consolidation", "delete_min_support", "resample_tolerance", "prior_floor",
+                     "new_skill_weight"):
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0:
                 raise ValueError(f"LibraryConfig.{name} must be >= 0, got {v!r}")

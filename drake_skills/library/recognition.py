@@ -31,14 +31,15 @@ from drake_skills.library.algorithm import (YOUNG_SUPPORT, ComponentModel, gatin
                                            single_demo_rule, two_sample_d2)
 from drake_skills.library.gain import scale_correction
 from drake_skills.library.novelty import Chi2Rule, chi2_ppf
-from drake_skills.library.prefix import PHASE_GRID, _basis_at, phase_band, score_at_phase, score_component, score_prefix
+from drake_skills.library.prefix import (PHASE_BAND, PHASE_GRID, _basis_at, loglik_one, phase_band, score_at_phase,
+                                         score_component, score_prefix)
 from drake_skills.library.prefix_bound import prefix_candidates
 from drake_skills.library.scale import (BEGINNING_FRACTIONS, beginning_blind, cross_covariance, main_task,
                                         mixed_share, observation_noise)
 from drake_skills.library.views import Recognition, StillMotionError, UnknownSkillError
 from drake_skills.promp.basis import GaussianBasis, ridge_weights, trajectory_covariance, trajectory_variance
 from drake_skills.promp.interaction import condition_blocks, conditioned_mean_shift
-from drake_skills.promp.gaussian import inverse_lower
+from drake_skills.promp.gaussian import inverse_lower, logsumexp
 from drake_skills.promp.preprocessing import restart_vertex
 
 __all__ = ["PRUNE_MIN_COMPONENTS", "RecognitionMixin"]
@@ -55,6 +56,11 @@ PRUNE_MIN_COMPONENTS = 16
 #: within it (a cold review found half of the 10-20 % beginnings of 40 synthetic skills within 16
 #: of a blind other skill, which is then "undecided", never wrong).
 BLIND_REACH = 16.0
+#: A beginning whose best skill's estimated phase is at least this has covered (nearly) all of that skill's path:
+#: it is judged as a whole motion is, by the novelty test, and the hypothesis of a skill never taught
+#: (``LibraryConfig.new_skill_weight``) plays no part. Without this a library of one or two skills never answered a
+#: whole motion read with its phase estimated: the population of so few skills is little wider than each of them.
+NEW_SKILL_PHASE = 0.9
 
 
 class RecognitionMixin:
@@ -167,7 +173,7 @@ class RecognitionMixin:
         return Recognition(None, (), z, z, z, dof, "unknown", z, z)
 
     def _decide(self, logp, d2, dof, phases, scored: np.ndarray | None = None,
-                shares: np.ndarray | None = None) -> Recognition:
+                shares: np.ndarray | None = None, new_ll=None) -> Recognition:
         """The answer from per-component statistics; ``scored``: the components scored (the others cannot fit).
 
         ``shares`` (K,): for a beginning, the share of each component's path it covers. A
@@ -175,7 +181,11 @@ class RecognitionMixin:
         answer differently misses too many of its own demonstrations' beginnings at its share
         (its record of beginnings; :func:`~drake_skills.library.scale.beginning_blind`) and
         the beginning lies within :data:`BLIND_REACH` of its thresholds: its test cannot rule
-        it out (``Recognition.blind`` names it).
+        it out (``Recognition.blind`` names it). ``new_ll``: for a beginning, a callable giving its
+        log-likelihood as a skill never taught (:meth:`_new_skill_loglik`), asked only when the answer
+        would be a skill and the best one's phase is below :data:`NEW_SKILL_PHASE`; with ``new_skill_weight``
+        beside the supports of the components kept, at ``decision_risk`` of the posterior or more the answer is
+        "undecided" (``Recognition.new_skill``).
         """
         comps = self._components
         if scored is None:
@@ -224,9 +234,17 @@ class RecognitionMixin:
                 mask &= ~self._same_response(best, mask)
             if mask.any():
                 status, comp, blind = "undecided", None, tuple(ids[i] for i in np.flatnonzero(mask))
+        new_skill = 0.0
+        if new_ll is not None and status == "skill" and phases[best] < NEW_SKILL_PHASE:
+            # a skill never taught, with weight new_skill_weight beside the supports of the components kept
+            a = np.log(comps.support[keep]) + logp[keep]
+            b = np.log(self.config.new_skill_weight) + new_ll()
+            new_skill = float(np.exp(b - logsumexp(np.append(a, b))))
+            if new_skill >= self.config.decision_risk:
+                status, comp = "undecided", None
         seen_once = tuple(ids[i] for i in np.flatnonzero(fits & ~answers)) if answers.any() else ()
         return Recognition(comp, ids, resp, logp, d2, dof, status, phases, post, blind, seen_once,
-                           contested=contested)
+                           contested=contested, new_skill=new_skill)
 
     def _contested(self, best: int) -> tuple[int, ...]:
         """Ids of the components that make acting on component row ``best`` unsafe by their task names: ``best``
@@ -234,7 +252,14 @@ class RecognitionMixin:
         task whose means lie within ``other_task_reach`` times the merge limit of its (two-sample distance under
         the shared metric: fragments of one motion lie so close), once the shared scale is more data than prior
         (pooled dof ``nu >= prior_strength``; a chi-square library only: the reach is in its merge limits).
-        Empty without task names."""
+        Empty without task names. Kept per library version and row (it depends on nothing else)."""
+        memo = self._cached("contested", dict)
+        hit = memo.get(best)
+        if hit is None:
+            hit = memo[best] = self._contested_now(best)
+        return hit
+
+    def _contested_now(self, best: int) -> tuple[int, ...]:
         cfg = self.config
         comps = self._components
         tasks = comps.items[best].cluster.tasks
@@ -331,16 +356,48 @@ class RecognitionMixin:
         if idx is None or idx.size == len(comps):
             sc = score_prefix(ys, guess, pm.means_h, inflate, pm.chol, cfg.basis_human, noise,
                               self._prefix_cache(), band)
-            return self._decide(sc.log_likelihoods, sc.mahalanobis_sq, sc.dof, sc.phases, shares=guess)
-        # the components ruled out cannot explain the samples: log-likelihood -inf, distance inf
-        K = len(comps)
-        logp, d2 = np.full(K, -np.inf), np.full(K, np.inf)
-        dof, phases = np.full(K, float(self.n_human)), np.clip(guess, 1.0 / cfg.n_samples, 1.0)
-        if idx.size:
-            sc = score_prefix(ys, guess[idx], pm.means_h[idx], inflate[idx], pm.chol, cfg.basis_human, noise,
-                              self._prefix_cache(), band[idx])
-            logp[idx], d2[idx], dof[idx], phases[idx] = sc.log_likelihoods, sc.mahalanobis_sq, sc.dof, sc.phases
-        return self._decide(logp, d2, dof, phases, scored=idx, shares=guess)
+            logp, d2, dof, phases, sub = sc.log_likelihoods, sc.mahalanobis_sq, sc.dof, sc.phases, None
+        else:
+            # the components ruled out cannot explain the samples: log-likelihood -inf, distance inf
+            K = len(comps)
+            logp, d2 = np.full(K, -np.inf), np.full(K, np.inf)
+            dof, phases = np.full(K, float(self.n_human)), np.clip(guess, 1.0 / cfg.n_samples, 1.0)
+            sub = idx
+            if idx.size:
+                sc = score_prefix(ys, guess[idx], pm.means_h[idx], inflate[idx], pm.chol, cfg.basis_human, noise,
+                                  self._prefix_cache(), band[idx])
+                logp[idx], d2[idx], dof[idx], phases[idx] = sc.log_likelihoods, sc.mahalanobis_sq, sc.dof, sc.phases
+        new_ll = None
+        if cfg.new_skill_weight > 0:   # a skill never taught: scored only when the answer would be a skill
+            def new_ll():
+                return self._new_skill_loglik(ys, path.length, noise)
+        return self._decide(logp, d2, dof, phases, scored=sub, shares=guess, new_ll=new_ll)
+
+    def _new_skill_loglik(self, ys: np.ndarray, length: float, noise: float) -> float:
+        """log p(beginning | a skill never taught), its phase searched as a component's (``new_skill_weight``).
+
+        The model is the population of every demonstration seen: their mean human weights, and as covariance the
+        shared within-skill covariance ``Sigma`` plus the per-weight variance of all demonstrations (between and
+        within skills), unshrunk as the components' are (``_prefix_model``); its path length the support-weighted
+        mean of the components'. Kept per library version, with its own eigendecompositions.
+        """
+        def compute():
+            h = self.n_human
+            sc = self._scale
+            spread = np.asarray(sc.total_m2[:h], float) / max(sc.n - 1, 1)
+            U = self._unshrink_human()
+            comps = self._components
+            length0 = float(np.average(comps.path_length, weights=comps.support))
+            mean = U @ np.asarray(sc.total_mean[:h], float)
+            mean.setflags(write=False)
+            chol = U @ np.linalg.cholesky(self._gating_cov() + np.diag(spread))
+            return _NewSkill(mean, chol, max(length0, 1e-12), {})
+        new = self._cached("new_skill", compute)
+        ll = loglik_one(ys, _band_of(length / new.length), new.mean, new.chol, self.config.basis_human, noise,
+                        new.cache)
+        # the phase is not known: the evidence is the likelihood averaged over the band (as score_prefix's)
+        top = float(ll.max())
+        return top + float(np.log(np.mean(np.exp(ll - top))))
 
     def predict_robot(self, human, observed_fraction: float | None = None, *, workspace: Workspace | None = None,
                       component: int | None = None, n_steps: int | None = None, normalized: bool = False,
@@ -588,12 +645,34 @@ def _unshrink_block(basis: GaussianBasis, n_samples: int, ridge: float, dim: int
 
 
 @dataclass(frozen=True, eq=False)
+class _NewSkill:
+    """:meth:`RecognitionMixin._new_skill_loglik`'s model: mean (h,), covariance factor (h, h), path length, and
+    its eigendecompositions per phase (``prefix.score_phases``'s cache)."""
+
+    mean: np.ndarray
+    chol: np.ndarray
+    length: float
+    cache: dict
+
+
+@dataclass(frozen=True, eq=False)
 class _PrefixModel:
     """:meth:`RecognitionMixin._prefix_model`: means (K, h), the covariance's factor (h, h) and ``S^-1`` (h, h)."""
 
     means_h: np.ndarray
     chol: np.ndarray
     unshrink: np.ndarray
+
+
+def _band_of(guess: float) -> tuple:
+    """The phases of :data:`PHASE_GRID` that :func:`~drake_skills.library.prefix.phase_band` allows for one guess."""
+    g = min(max(float(guess), PHASE_GRID[0]), 1.0)
+    lo, hi = g / PHASE_BAND - 1e-12, min(g * PHASE_BAND, 1.0) + 1e-12
+    n = len(PHASE_GRID)
+    first = next((i for i in range(n) if PHASE_GRID[i] >= lo), n)
+    last = next((i for i in range(n - 1, -1, -1) if PHASE_GRID[i] <= hi), -1)
+    near = min(range(n), key=lambda i: abs(PHASE_GRID[i] - g))
+    return PHASE_GRID[min(first, near):max(last, near) + 1]   # near lies in the band or next to it
 
 
 def _median(x: np.ndarray) -> float:
@@ -652,7 +731,9 @@ def undecided_reason(rec: Recognition) -> str:
     motion lies beyond its stricter limit (``Recognition.seen_once``); "blind: j, ...": the beginning
     fits, but those components miss their own beginnings there (``Recognition.blind``); "taught as
     several tasks: k" and "k lies near skills taught as other tasks: j, ..." (``Recognition.contested``,
-    ``LibraryConfig.mixed_task_share`` and ``other_task_reach``); "between a and b": the two most
+    ``LibraryConfig.mixed_task_share`` and ``other_task_reach``); "may begin a skill never taught (p x); most
+    probable k": a beginning one skill explains that may be of a skill not taught (``Recognition.new_skill``,
+    ``LibraryConfig.new_skill_weight``); "between a and b": the two most
     probable components, neither ``1 - decision_risk`` probable.
     """
     if rec.status != "undecided":
@@ -665,6 +746,8 @@ def undecided_reason(rec: Recognition) -> str:
         return f"seen once: {rec.best}"
     if rec.blind:
         return "blind: " + ", ".join(map(str, rec.blind))
+    if rec.new_skill > 0 and rec.best is not None and rec.posterior.max() >= 0.5:
+        return f"may begin a skill never taught (p {rec.new_skill:.2g}); most probable {rec.best}"
     top = np.argsort(rec.posterior)[::-1][:2]
     return "between " + " and ".join(str(rec.ids[i]) for i in top)
 

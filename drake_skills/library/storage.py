@@ -442,6 +442,7 @@ def _state_of(meta: dict, version: int, arrays, where: str) -> LibraryState:
         cfg_meta.setdefault("other_task_reach", 0.0)  # optional key: likewise
         cfg_meta.setdefault("same_task_reach", 1.0)  # optional key: a file written before it merged without names
         cfg_meta.setdefault("keep_tasks_apart", False)  # optional key: likewise
+        cfg_meta.setdefault("new_skill_weight", 0.0)  # optional key: a file written before it answered beginnings so
         config = LibraryConfig.from_dict(cfg_meta)
         comps_meta = list(meta["components"])
         dim_h, dim_r = meta["dim_human"], meta["dim_robot"]

@@ -223,6 +223,13 @@ class Recognition:
     #: near it (``LibraryConfig.other_task_reach``). The teacher called these motions different tasks, so
     #: acting on one could be the wrong one. Empty otherwise.
     contested: tuple[int, ...] = ()
+    #: For a beginning (the phase estimated): the posterior probability that it begins a skill the library was
+    #: never taught (``LibraryConfig.new_skill_weight``; the population of all demonstrations as that skill's
+    #: model). At or above ``decision_risk`` a beginning one skill explains is "undecided": wait for more of it.
+    #: Computed only for a beginning the components alone would answer as a skill, short of
+    #: ``recognition.NEW_SKILL_PHASE`` (0.9) of its path; 0 otherwise (and for whole motions, beginnings of a
+    #: given fraction, and with the setting off).
+    new_skill: float = 0.0
 
     @property
     def unknown(self) -> bool:

@@ -218,6 +218,8 @@ def _assert_same_answer(rec, expect, *, exact_arrays=True):
     np.testing.assert_allclose(np.broadcast_to(rec.dof, scored.shape)[scored],
                                np.broadcast_to(expect["dof"], scored.shape)[scored], **tol)
     np.testing.assert_array_equal(rec.phases[scored], expect["phases"][scored])
+    # a skill never taught (LibraryConfig.new_skill_weight): the same posterior, from an independent prefix likelihood
+    np.testing.assert_allclose(rec.new_skill, expect.get("new_skill", 0.0), rtol=1e-6, atol=1e-12)
     return scored
 
 
