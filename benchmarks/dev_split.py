@@ -26,7 +26,9 @@ from drake_skills.data.interaction import load_interactions
 from drake_skills.evaluation.interaction import (InteractionContext, InteractionSettings, default_data_path,
                                                  development_splits, evaluate_interaction)
 
-TABLES = ("recognition", "response", "anticipation", "commits")
+#: The tables it can print (`untaught`: each task left out in turn, 2 orders per task, only when asked for).
+TABLES = ("recognition", "response", "anticipation", "commits", "untaught")
+DEFAULT_TABLES = ("recognition", "response", "anticipation", "commits")
 
 
 def _mean_table(tables) -> list[list]:
@@ -44,7 +46,7 @@ def _mean_table(tables) -> list[list]:
     return rows
 
 
-def sweep(field: str, values, *, orders: int = 4, tables=TABLES, data=None, out=sys.stdout, teaching="random",
+def sweep(field: str, values, *, orders: int = 4, tables=DEFAULT_TABLES, data=None, out=sys.stdout, teaching="random",
           fixed=None) -> None:
     """Print the mean ``tables`` on the development splits for ``LibraryConfig(**fixed, **{field: v})``, each v,
     taught in ``teaching`` order ("random" or "row": task by task)."""
@@ -60,7 +62,8 @@ def sweep(field: str, values, *, orders: int = 4, tables=TABLES, data=None, out=
     default = getattr(LibraryConfig(), field)
     for v in values:
         settings = InteractionSettings(data=path, orders=orders, library=LibraryConfig(**{**(fixed or {}), field: v}),
-                                       loo_orders=0, teaching=teaching)
+                                       loo_orders=0, teaching=teaching,
+                                       untaught_orders=2 if "untaught" in tables else 0)
         reps = [evaluate_interaction(settings, progress=False, figures=False,
                                      context=InteractionContext.from_splits(taught, held, settings))
                 for taught, held in splits]
@@ -92,7 +95,7 @@ def main(argv=None) -> int:
     ap.add_argument("field", help="a LibraryConfig field, e.g. expert_prior")
     ap.add_argument("values", help="comma-separated values, e.g. 1,4,16")
     ap.add_argument("--orders", type=int, default=4, help="random orders per draw (default: %(default)s)")
-    ap.add_argument("--tables", default=",".join(TABLES), help="comma-separated tables (default: %(default)s)")
+    ap.add_argument("--tables", default=",".join(DEFAULT_TABLES), help="comma-separated tables (default: %(default)s)")
     ap.add_argument("--data", default=None, help="buetepage_hr.npz (default: the shared data folder)")
     ap.add_argument("--teaching", choices=("random", "row"), default="random",
                     help="order of the taught interactions: random, or task by task (default: %(default)s)")
