@@ -163,20 +163,35 @@ def loglik_one(y: np.ndarray, phases: tuple, mean_h: np.ndarray, chol: np.ndarra
                noise_var: float, cache: dict | None = None) -> np.ndarray:
     """:func:`prefix_loglik` of one Gaussian (``mean_h`` (h,), covariance ``chol chol^T``, no inflation), shape (J,).
 
-    The same quantities laid out for a single model: a tenth of the array reshaping, half the time.
+    One model needs no eigendecomposition (what lets :func:`prefix_loglik` scale the covariance per component):
+    with ``B_j = L^T (I_D (x) PtP_j) L`` and the Cholesky factor ``K_j`` of ``sigma^2 I + B_j``, the samples' misfit
+    is ``(|r|^2 - |K_j^-1 L^T H r|^2) / sigma^2`` and the log-determinant ``2 sum log diag K_j - h log sigma^2``
+    (Woodbury). ``cache`` keeps ``K_j^-1`` and the log-determinant per phase for this ``chol`` and ``noise_var``
+    (a fifth of the cost of the eigendecompositions when a library has just learned).
     """
     m, D = y.shape
     Phi = _basis_terms(basis, phases, int(m))[0]                             # (J, m, N)
-    lam, Q = _per_phase(cache, "gram", phases, int(m), lambda fs: _whitened_gram(_basis_terms(basis, fs, int(m))[1],
-                                                                                  chol, D))
+    W, logdet = _per_phase(cache, "woodbury", phases, int(m),
+                           lambda fs: _woodbury_terms(_basis_terms(basis, fs, int(m))[1], chol, D, noise_var))
     J, _, N = Phi.shape
     r = y[None] - Phi @ mean_h.reshape(D, N).T                               # (J, m, D)
     rr = np.einsum("jmd,jmd->j", r, r)
-    u = np.matmul(Phi.transpose(0, 2, 1), r).transpose(0, 2, 1).reshape(J, 1, D * N)   # (J, 1, D N): H r
-    v = np.matmul(u @ chol, Q)[:, 0]                                         # (J, h)
-    d2_obs = (rr - np.sum(v * v / (noise_var + lam), axis=1)) / noise_var
-    logdet = np.sum(np.log1p(lam / noise_var), axis=1)
+    u = np.matmul(Phi.transpose(0, 2, 1), r).transpose(0, 2, 1).reshape(J, D * N, 1)   # (J, D N, 1): H r
+    x = np.matmul(W, chol.T @ u)[..., 0]                                     # (J, h): K_j^-1 L^T H r
+    d2_obs = (rr - np.einsum("jh,jh->j", x, x)) / noise_var
     return -0.5 * (m * D * (_LOG_2PI + np.log(noise_var)) + logdet + d2_obs)
+
+
+def _woodbury_terms(PtP: np.ndarray, chol: np.ndarray, D: int, noise_var: float):
+    """For every phase j: ``K_j^-1`` (J, h, h), ``K_j`` the Cholesky factor of ``sigma^2 I + L^T (I_D (x) PtP_j) L``,
+    and ``log det(I + L^T (I_D (x) PtP_j) L / sigma^2)`` (J,)."""
+    N = PtP.shape[1]
+    Ld = chol.reshape(D, N, -1)
+    B = sum(np.matmul(Ld[d].T, np.matmul(PtP, Ld[d])) for d in range(D))
+    h = B.shape[1]
+    K = np.linalg.cholesky(0.5 * (B + B.transpose(0, 2, 1)) + noise_var * np.eye(h))
+    logdet = 2.0 * np.log(np.diagonal(K, axis1=1, axis2=2)).sum(axis=1) - h * np.log(noise_var)
+    return np.linalg.inv(K), logdet
 
 
 def fit_statistic(y: np.ndarray, phases, means_h: np.ndarray, inflate: np.ndarray, chol: np.ndarray,
