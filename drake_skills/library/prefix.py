@@ -189,7 +189,16 @@ def _woodbury_terms(PtP: np.ndarray, chol: np.ndarray, D: int, noise_var: float)
     Ld = chol.reshape(D, N, -1)
     B = sum(np.matmul(Ld[d].T, np.matmul(PtP, Ld[d])) for d in range(D))
     h = B.shape[1]
-    K = np.linalg.cholesky(0.5 * (B + B.transpose(0, 2, 1)) + noise_var * np.eye(h))
+    B = 0.5 * (B + B.transpose(0, 2, 1))
+    try:
+        K = np.linalg.cholesky(B + noise_var * np.eye(h))
+    except np.linalg.LinAlgError:
+        # rounding left B with negative eigenvalues beyond the noise (a singular unshrink, e.g. fewer samples than
+        # basis functions): the eigendecomposition, clipped at 0 as prefix_loglik's, with W^T W = (sigma^2 I + B)^-1
+        lam, Q = np.linalg.eigh(B)
+        lam = np.clip(lam, 0.0, None)
+        W = (Q / np.sqrt(noise_var + lam)[:, None, :]).transpose(0, 2, 1)
+        return W, np.log1p(lam / noise_var).sum(axis=1)
     logdet = 2.0 * np.log(np.diagonal(K, axis1=1, axis2=2)).sum(axis=1) - h * np.log(noise_var)
     return np.linalg.inv(K), logdet
 

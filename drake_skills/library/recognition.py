@@ -746,7 +746,7 @@ def undecided_reason(rec: Recognition) -> str:
         return f"seen once: {rec.best}"
     if rec.blind:
         return "blind: " + ", ".join(map(str, rec.blind))
-    if rec.new_skill > 0 and rec.best is not None and rec.posterior.max() >= 0.5:
+    if rec.new_skill > 0:   # computed only when the answer would have been a skill: it held the answer
         return f"may begin a skill never taught (p {rec.new_skill:.2g}); most probable {rec.best}"
     top = np.argsort(rec.posterior)[::-1][:2]
     return "between " + " and ".join(str(rec.ids[i]) for i in top)
@@ -769,6 +769,9 @@ def _unknown_message(rec: Recognition) -> str:
         return (f"the motion is closest to skill {rec.best} ({p:.2f}), learned from one demonstration, but lies "
                 "beyond the stricter limit for a skill seen once (single_demo_quantile): observe more, or "
                 "demonstrate that skill again")
+    if rec.status == "undecided" and rec.new_skill > 0:
+        return (f"the motion's beginning fits skill {rec.best}, but may as well begin a skill never taught "
+                f"(p {rec.new_skill:.2g}; LibraryConfig.new_skill_weight): observe more")
     if rec.status == "undecided":
         top = np.argsort(rec.posterior)[::-1][:2]
         cands = ", ".join(f"{rec.ids[i]} ({rec.posterior[i]:.2f})" for i in top)

@@ -86,6 +86,7 @@ def _rewrite(src, dst, **changes):
     ("split_within_share", 0.2, 1.0),       # learned splitting on the halves' distance alone
     ("keep_single_demos_apart", True, False),  # learned merging two components seen once within the quantile
     ("skip_false_starts", True, False),     # read every motion whole
+    ("new_skill_weight", 1.0, 0.0),         # answered a beginning whenever a skill explained it
 ])
 def test_a_file_written_before_an_optional_key_loads_as_it_was_learned_and_a_new_one_keeps_it(lib, tmp_path, key,
                                                                                               now, before):
