@@ -1,20 +1,15 @@
 """benchmarks/false_starts.py (the experiment behind RESULTS.md's "False starts"), at a reduced size."""
-import importlib.util
-from pathlib import Path
 
 import numpy as np
 
 from drake_skills import LibraryConfig
 from drake_skills.data.lasa import lasa_workspace, load_lasa
 
-_PATH = Path(__file__).resolve().parents[2] / "benchmarks" / "false_starts.py"
+from bench_scripts import load
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location("false_starts_script", _PATH)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load("false_starts")
 
 
 def test_a_false_start_is_out_and_back_to_where_the_motion_begins_then_the_motion_itself():

@@ -1,19 +1,14 @@
 """benchmarks/inseparable.py (the experiment behind RESULTS.md's "Skills taught as several tasks"), its construction."""
-import importlib.util
-from pathlib import Path
 
 import numpy as np
 
 from drake_skills import Demonstration
 
-_PATH = Path(__file__).resolve().parents[2] / "benchmarks" / "inseparable.py"
+from bench_scripts import load
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location("inseparable_script", _PATH)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load("inseparable")
 
 
 def _demo(task, k, T, rng):

@@ -1,19 +1,9 @@
 """benchmarks/new_skill_cost.py (RESULTS.md, "A skill never taught, as a hypothesis for beginnings"): its counts."""
-import importlib.util
-from pathlib import Path
-
-_PATH = Path(__file__).resolve().parents[2] / "benchmarks" / "new_skill_cost.py"
-
-
-def _script():
-    spec = importlib.util.spec_from_file_location("new_skill_cost_script", _PATH)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+from bench_scripts import load
 
 
 def test_one_bank_counts_every_beginning_once_and_the_hypothesis_only_holds_answers():
-    out = _script().measure(banks=1, taught=3, demos=3, shares=(0.3, 0.6))
+    out = load("new_skill_cost").measure(banks=1, taught=3, demos=3, shares=(0.3, 0.6))
     assert out["taught beginnings"] == 6 and out["untaught beginnings"] == 2
     # the hypothesis only turns answers into "undecided": never a new answer, never a wrong one
     assert out["held, on"] <= out["answered right, off"] + out["answered wrong, off"]

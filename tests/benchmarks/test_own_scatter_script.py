@@ -1,7 +1,5 @@
 """benchmarks/own_scatter.py (the experiment behind RESULTS.md's "A component's own scatter as its scale"): its
 widened distance is the one the covariance it describes gives, and the library is restored after it."""
-import importlib.util
-from pathlib import Path
 
 import numpy as np
 
@@ -10,14 +8,11 @@ from drake_skills.data.synthetic import skill_bank
 from drake_skills.library import algorithm, recognition
 from drake_skills.promp.basis import ridge_weights
 
-_PATH = Path(__file__).resolve().parents[2] / "benchmarks" / "own_scatter.py"
+from bench_scripts import load
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location("own_scatter_script", _PATH)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load("own_scatter")
 
 
 def _library():
