@@ -22,11 +22,14 @@ from shared_data import require
 SHARES = (0.3, 0.5, 0.7, 0.9)
 
 
-def _taught(weight: float, n_skills: int = 3, reps: int = 3):
+def _taught(weight: float, n_skills: int = 3, reps=3):
+    """A library of ``n_skills`` synthetic skills, ``reps`` demonstrations each (an int, or one per skill),
+    interleaved."""
     bank = skill_bank(n_skills + 1, 0, separation=2.0)
     rng = np.random.default_rng(5)
     lib = SkillLibrary(LibraryConfig(new_skill_weight=weight))
-    demos = [bank.demo(k, rng) for _ in range(reps) for k in range(n_skills)]
+    reps = [reps] * n_skills if np.ndim(reps) == 0 else list(reps)
+    demos = [bank.demo(k, rng) for r in range(max(reps)) for k in range(n_skills) if r < reps[k]]
     for d in demos:
         lib.partial_fit(d)
     return lib, bank, demos
@@ -71,8 +74,11 @@ def test_the_hypothesis_only_turns_skill_answers_undecided_where_it_holds_decisi
     assert changed > 0, "no beginning was held by the hypothesis: the case is not exercised"
 
 
-def test_the_new_skill_posterior_is_the_population_model_against_the_kept_components():
-    lib, bank, demos = _taught(1.0)
+@pytest.mark.parametrize("reps", [3, (5, 2, 3), (2, 4, 3)])
+def test_the_new_skill_posterior_is_the_population_model_against_the_kept_components(reps):
+    """Its mean and spread are those of every demonstration; its path length the support-weighted mean of the
+    components' (unequal supports)."""
+    lib, bank, demos = _taught(1.0, reps=reps)
     cfg = lib.config
     h = lib.n_human
     # the population of every demonstration seen, from the demonstrations themselves
@@ -108,6 +114,8 @@ def test_the_new_skill_posterior_is_the_population_model_against_the_kept_compon
             np.testing.assert_allclose(rec.new_skill, expected, rtol=1e-6, atol=1e-12)
             checked += 1
     assert checked >= 4
+    model = lib._cached("new_skill", None)        # kept per library version, read-only
+    assert not model.mean.flags.writeable
 
 
 def test_beginnings_of_an_untaught_real_task_are_held_where_a_taught_one_would_be_answered():
