@@ -375,3 +375,34 @@ def test_predict_robot_variances_only_gives_the_diagonals_of_the_full_covariance
         np.testing.assert_array_equal(m_full, m_var)
         assert var.shape == m_var.shape
         np.testing.assert_allclose(var, np.diagonal(cov, axis1=1, axis2=2), rtol=0, atol=1e-12 * np.abs(cov).max())
+
+
+def test_the_task_name_check_of_a_skill_is_computed_once_per_library_version_and_row(monkeypatch):
+    """``_contested`` depends on nothing but the library (its names, means and scale) and the row asked for: it is
+    kept per version and row, and computed again once the library learns."""
+    from drake_skills.data.synthetic import skill_bank
+    from drake_skills.library.recognition import RecognitionMixin
+
+    bank = skill_bank(3, 0, separation=3.0)
+    rng = np.random.default_rng(12)
+    lib = SkillLibrary(LibraryConfig())
+    for _ in range(3):
+        for k in range(3):
+            d = bank.demo(k, rng)
+            lib.partial_fit(type(d)(d.t, d.human, d.robot, task=f"t{k}", name=d.name))
+    calls = []
+    real = RecognitionMixin._contested_now
+
+    def counted(self, best):
+        calls.append(best)
+        return real(self, best)
+    monkeypatch.setattr(RecognitionMixin, "_contested_now", counted)
+    first = [lib._contested(i) for i in range(lib.n_components)]
+    again = [lib._contested(i) for i in range(lib.n_components)]
+    assert again == first and calls == list(range(lib.n_components))
+    before = len(calls)
+    lib.partial_fit(bank.demo(0, rng))             # a new version: every row computed again, once
+    for _ in range(2):
+        for i in range(lib.n_components):
+            lib._contested(i)
+    assert calls[before:] == list(range(lib.n_components))
