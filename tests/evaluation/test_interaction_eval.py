@@ -378,9 +378,11 @@ def test_cli_quick_keeps_the_orders_asked_for_and_names_the_robot_units(tmp_path
 
     out = tmp_path / "interaction"
     assert main(["eval", "interaction", "--data", str(require()), "--quick", "--orders", "1", "--robot-units", "m",
-                 "--loo-orders", "0", "--no-progress", "--workers", "1", "--out", str(out)]) == 0
+                 "--loo-orders", "0", "--untaught-orders", "0", "--no-progress", "--workers", "1",
+                 "--out", str(out)]) == 0
     s = json.loads((out / "summary.json").read_text())
     assert len(s["components"]) == 1
+    assert "untaught" not in s and not (out / "untaught.csv").exists()   # 0 skips the table
     header, _ = _rows(out / "response.csv")
     assert "conditioned (m)" in header and not any("(rad)" in h for h in header)
     capsys.readouterr()
