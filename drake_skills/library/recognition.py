@@ -31,7 +31,7 @@ from drake_skills.library.algorithm import (YOUNG_SUPPORT, ComponentModel, gatin
                                            single_demo_rule, two_sample_d2)
 from drake_skills.library.gain import scale_correction
 from drake_skills.library.novelty import Chi2Rule, chi2_ppf
-from drake_skills.library.prefix import (PHASE_BAND, PHASE_GRID, _basis_at, loglik_one, phase_band, score_at_phase,
+from drake_skills.library.prefix import (PHASE_GRID, _basis_at, band_of, loglik_one, phase_band, score_at_phase,
                                          score_component, score_prefix)
 from drake_skills.library.prefix_bound import prefix_candidates
 from drake_skills.library.scale import (BEGINNING_FRACTIONS, beginning_blind, cross_covariance, main_task,
@@ -379,7 +379,7 @@ class RecognitionMixin:
         The model is the population of every demonstration seen: their mean human weights, and as covariance the
         shared within-skill covariance ``Sigma`` plus the per-weight variance of all demonstrations (between and
         within skills), unshrunk as the components' are (``_prefix_model``); its path length the support-weighted
-        mean of the components'. Kept per library version, with its own eigendecompositions.
+        mean of the components'. Kept per library version, with its own factors per phase (``prefix.loglik_one``).
         """
         def compute():
             h = self.n_human
@@ -393,11 +393,10 @@ class RecognitionMixin:
             chol = U @ np.linalg.cholesky(self._gating_cov() + np.diag(spread))
             return _NewSkill(mean, chol, max(length0, 1e-12), {})
         new = self._cached("new_skill", compute)
-        ll = loglik_one(ys, _band_of(length / new.length), new.mean, new.chol, self.config.basis_human, noise,
+        ll = loglik_one(ys, band_of(length / new.length), new.mean, new.chol, self.config.basis_human, noise,
                         new.cache)
         # the phase is not known: the evidence is the likelihood averaged over the band (as score_prefix's)
-        top = float(ll.max())
-        return top + float(np.log(np.mean(np.exp(ll - top))))
+        return float(logsumexp(ll) - np.log(ll.size))
 
     def predict_robot(self, human, observed_fraction: float | None = None, *, workspace: Workspace | None = None,
                       component: int | None = None, n_steps: int | None = None, normalized: bool = False,
@@ -647,7 +646,7 @@ def _unshrink_block(basis: GaussianBasis, n_samples: int, ridge: float, dim: int
 @dataclass(frozen=True, eq=False)
 class _NewSkill:
     """:meth:`RecognitionMixin._new_skill_loglik`'s model: mean (h,), covariance factor (h, h), path length, and
-    its eigendecompositions per phase (``prefix.score_phases``'s cache)."""
+    its factors per phase (``prefix.loglik_one``'s cache)."""
 
     mean: np.ndarray
     chol: np.ndarray
@@ -662,17 +661,6 @@ class _PrefixModel:
     means_h: np.ndarray
     chol: np.ndarray
     unshrink: np.ndarray
-
-
-def _band_of(guess: float) -> tuple:
-    """The phases of :data:`PHASE_GRID` that :func:`~drake_skills.library.prefix.phase_band` allows for one guess."""
-    g = min(max(float(guess), PHASE_GRID[0]), 1.0)
-    lo, hi = g / PHASE_BAND - 1e-12, min(g * PHASE_BAND, 1.0) + 1e-12
-    n = len(PHASE_GRID)
-    first = next((i for i in range(n) if PHASE_GRID[i] >= lo), n)
-    last = next((i for i in range(n - 1, -1, -1) if PHASE_GRID[i] <= hi), -1)
-    near = min(range(n), key=lambda i: abs(PHASE_GRID[i] - g))
-    return PHASE_GRID[min(first, near):max(last, near) + 1]   # near lies in the band or next to it
 
 
 def _median(x: np.ndarray) -> float:

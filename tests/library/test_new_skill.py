@@ -162,11 +162,11 @@ def test_beginnings_of_an_untaught_real_task_are_held_where_a_taught_one_would_b
 
 
 def test_the_band_of_one_guess_is_phase_band_s():
-    from drake_skills.library.recognition import _band_of
+    from drake_skills.library.prefix import band_of
 
     grid = np.array(PHASE_GRID)
     for g in np.concatenate([np.linspace(-0.1, 1.3, 1401), grid, grid * 1.5, grid / 1.5]):
-        np.testing.assert_array_equal(np.array(_band_of(g)), grid[phase_band(np.array([g]))[0]], err_msg=str(g))
+        np.testing.assert_array_equal(np.array(band_of(g)), grid[phase_band(np.array([g]))[0]], err_msg=str(g))
 
 
 def test_loglik_one_is_prefix_loglik_of_one_row():
