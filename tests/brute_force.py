@@ -64,6 +64,15 @@ def _resp(logp, support, mask=None):
     return np.exp(a - logsumexp(a))
 
 
+def _band(share: float) -> list:
+    """The phases searched for a path-length share: within PHASE_BAND of it on the grid, and the nearest."""
+    grid = np.array(PHASE_GRID)
+    g = min(max(share, grid[0]), 1.0)
+    band = [f for f in grid if g / PHASE_BAND - 1e-12 <= f <= min(g * PHASE_BAND, 1.0) + 1e-12]
+    nearest = float(grid[np.abs(grid - g).argmin()])
+    return band if nearest in band else sorted(band + [nearest])
+
+
 class Reference:
     """The library's state as a list of :class:`ComponentModel`, updated by the original loop."""
 
@@ -332,18 +341,13 @@ class Reference:
         """``ys``: the observed path resampled as the library resamples it; ``length``: its path length."""
         cfg, h = self.cfg, self.h
         metric = _metric(self.scale, h, cfg)
-        grid = np.array(PHASE_GRID)
         K = len(self.items)
         logp, d2, dof, phases, shares = np.empty(K), np.empty(K), np.empty(K), np.empty(K), np.empty(K)
         m = ys.shape[0]
         U = unshrink(cfg, h)
         for i, c in enumerate(self.items):
             shares[i] = length / max(c.cluster.path_length, 1e-12)
-            g = min(max(shares[i], grid[0]), 1.0)
-            band = [f for f in grid if g / PHASE_BAND - 1e-12 <= f <= min(g * PHASE_BAND, 1.0) + 1e-12]
-            nearest = float(grid[np.abs(grid - g).argmin()])
-            if nearest not in band:
-                band = sorted(band + [nearest])
+            band = _band(shares[i])
             stats = [prefix_statistics(U @ c.mean[:h], U @ metric[0] @ U.T * (1.0 + 1.0 / c.support),
                                        cfg.basis_human.phi(np.linspace(0.0, f, m)), ys, self._noise()) for f in band]
             lps = np.array([st[0] for st in stats])
@@ -359,11 +363,7 @@ class Reference:
             cov0 = metric[0] + np.diag(sc.total_m2[:h] / max(sc.n - 1, 1))
             support = self._support()
             length0 = float(np.sum(support * [c.cluster.path_length for c in self.items]) / support.sum())
-            g = min(max(length / max(length0, 1e-12), grid[0]), 1.0)
-            band = [f for f in grid if g / PHASE_BAND - 1e-12 <= f <= min(g * PHASE_BAND, 1.0) + 1e-12]
-            nearest = float(grid[np.abs(grid - g).argmin()])
-            if nearest not in band:
-                band = sorted(band + [nearest])
+            band = _band(length / max(length0, 1e-12))
             lps = [prefix_statistics(U @ sc.total_mean[:h], U @ cov0 @ U.T, cfg.basis_human.phi(np.linspace(0.0, f, m)),
                                      ys, self._noise())[0] for f in band]
             new_ll = logsumexp(lps) - np.log(len(band))
