@@ -31,8 +31,8 @@ from drake_skills.library.algorithm import (YOUNG_SUPPORT, ComponentModel, gatin
                                            single_demo_rule, two_sample_d2)
 from drake_skills.library.gain import scale_correction
 from drake_skills.library.novelty import Chi2Rule, chi2_ppf
-from drake_skills.library.prefix import (PHASE_GRID, _basis_at, band_of, loglik_one, phase_band, score_at_phase,
-                                         score_component, score_prefix)
+from drake_skills.library.prefix import (PHASE_GRID, _basis_at, band_of, loglik_one, phase_band, prefix_loglik,
+                                         score_at_phase, score_component, score_prefix)
 from drake_skills.library.prefix_bound import prefix_candidates
 from drake_skills.library.scale import (BEGINNING_FRACTIONS, beginning_blind, cross_covariance, main_task,
                                         mixed_share, observation_noise)
@@ -576,10 +576,11 @@ class RecognitionMixin:
         guess = path.length / max(c.cluster.path_length, 1e-12)
         ys = path.resample(_prefix_samples(cfg.n_samples, min(1.0, guess)))
         pm = self._prefix_model()
-        sc = score_prefix(ys, np.array([guess]), pm.means_h[[self._components.index(c.id)]],
-                          np.array([1.0 + 1.0 / c.support]), pm.chol, cfg.basis_human, self._noise(),
-                          self._prefix_cache())
-        return float(sc.phases[0])
+        # score_prefix's phase of one component, the likeliest of its band; its fit statistic is not needed here
+        phases = band_of(guess)
+        ll = prefix_loglik(ys, phases, pm.means_h[[self._components.index(c.id)]], np.array([1.0 + 1.0 / c.support]),
+                           pm.chol, cfg.basis_human, self._noise(), self._prefix_cache())
+        return float(phases[int(np.argmax(ll[:, 0]))])
 
     def _beginnings_missed(self, path: "_Path", k: int) -> np.ndarray:
         """Whether component row ``k`` rejects the beginnings of ``path`` (B,): 1 or 0, NaN where too short to test.
