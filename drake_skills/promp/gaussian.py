@@ -29,10 +29,11 @@ def logsumexp(a, axis=None) -> np.ndarray:
     All ``-inf`` along ``axis`` gives ``-inf``.
     """
     a = np.asarray(a, dtype=float)
-    m = np.max(a, axis=axis, keepdims=True)
-    m = np.where(np.isfinite(m), m, 0.0)
+    m = a.max(axis=axis, keepdims=True)
+    if not np.isfinite(m).all():   # all -inf (or +inf, nan) along the axis: shift by 0 there
+        m = np.where(np.isfinite(m), m, 0.0)
     with np.errstate(divide="ignore"):
-        out = np.log(np.sum(np.exp(a - m), axis=axis, keepdims=True)) + m
+        out = np.log(np.exp(a - m).sum(axis=axis, keepdims=True)) + m
     return out.squeeze(axis=axis) if axis is not None else out.reshape(())[()]
 
 
