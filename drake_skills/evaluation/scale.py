@@ -30,7 +30,7 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from drake_skills.data.demonstration import Demonstration
-from drake_skills.data.lasa import LASA_SHAPES, N_DEMOS, lasa_workspace, load_lasa
+from drake_skills.data.lasa import LASA_SHAPES, N_DEMOS, lasa_motions, lasa_workspace, load_lasa
 from drake_skills.data.synthetic import skill_bank
 from drake_skills.evaluation.common import EvalReport, Table, run_trials, stream_rng
 from drake_skills.evaluation.labeled import CORRECT, UNDECIDED, UNKNOWN, WRONG, LabeledLibrary
@@ -110,6 +110,12 @@ class LasaContext:
 
     demos: tuple[Demonstration, ...]
     settings: ScaleSettings
+    #: Each demonstration's motion (:func:`~drake_skills.data.lasa.lasa_motions`).
+    motions: tuple[str, ...] = ()
+
+    def __post_init__(self):
+        if not self.motions:
+            object.__setattr__(self, "motions", lasa_motions(self.demos))
 
 
 @dataclass(frozen=True)
@@ -125,6 +131,13 @@ class LasaTrial:
     per_shape: dict = field(default_factory=dict)
     #: Shape -> outcome counts (correct, wrong, undecided, unknown) of its held-out demonstrations.
     per_shape_counts: dict = field(default_factory=dict)
+    #: Motions (:func:`~drake_skills.data.lasa.lasa_motions`) among the taught demonstrations.
+    motions_taught: int = 0
+    #: ``counts`` by motion: "unknown" for a held-out demonstration whose motion no taught one draws counts as
+    #: correct (the library was not shown it; a Multi_Models shape's motion can be held out whole).
+    counts_by_motion: tuple[int, int, int, int] = (0, 0, 0, 0)
+    #: Shape -> its motions among the taught demonstrations.
+    per_shape_motions: dict = field(default_factory=dict)
 
 
 def is_multi_model(shape: str) -> bool:
@@ -158,11 +171,15 @@ def lasa_trial(ctx: LasaContext, index: int) -> LasaTrial:
         tally_events(events, lab.teach(ctx.demos[j]), repeat=ctx.demos[j].task in seen)
         seen.add(ctx.demos[j].task)
     outcomes = [lab.classify(ctx.demos[j].human, ctx.demos[j].task)[0] for j in test]
+    taught = {ctx.motions[j] for j in train}
+    by_motion = [CORRECT if o == UNKNOWN and ctx.motions[j] not in taught else o for o, j in zip(outcomes, test)]
     per_shape = dict.fromkeys(by_shape, 0)
     for c in lab.library.components:
         per_shape[lab.label_of(c.id)] += 1
     per_counts = {k: _count([o for o, j in zip(outcomes, test) if ctx.demos[j].task == k]) for k in by_shape}
-    return LasaTrial(lab.library.n_components, _count(outcomes), events, per_shape, per_counts)
+    per_motions = {k: len({ctx.motions[j] for j in train if ctx.demos[j].task == k}) for k in by_shape}
+    return LasaTrial(lab.library.n_components, _count(outcomes), events, per_shape, per_counts, len(taught),
+                     _count(by_motion), per_motions)
 
 
 @dataclass(frozen=True)
@@ -313,29 +330,41 @@ def evaluate_scale(settings: ScaleSettings | None = None, *, progress: bool = Tr
         demos = tuple(load_lasa(shapes, subsample=s.lasa_subsample))
         ctx = LasaContext(demos, s)
         trials = run_trials(lasa_trial, range(s.lasa_orders), ctx, desc="scale: LASA orders", progress=progress)
-        rows = [[f"order {i}", t.components, *_fractions(t.counts), *(t.events[e] for e in EVENTS)]
-                for i, t in enumerate(trials)]
+        rows = [[f"order {i}", t.components, t.motions_taught, *_fractions(t.counts),
+                 _fractions(t.counts_by_motion)[0], *(t.events[e] for e in EVENTS)] for i, t in enumerate(trials)]
         comps = np.array([t.components for t in trials], float)
+        motions = np.array([t.motions_taught for t in trials], float)
         fr = np.array([_fractions(t.counts) for t in trials])
+        fm = np.array([_fractions(t.counts_by_motion) for t in trials])
         ev = np.array([[t.events[e] for e in EVENTS] for t in trials], float)
-        rows.append(["mean", float(comps.mean()), *fr.mean(axis=0).tolist(), *ev.mean(axis=0).tolist()])
+        rows.append(["mean", float(comps.mean()), float(motions.mean()), *fr.mean(axis=0).tolist(),
+                     float(fm[:, 0].mean()), *ev.mean(axis=0).tolist()])
         lasa_components = float(comps.mean())
         rep.tables["lasa"] = Table(
-            ["order", "components"] + list(OUTCOMES) + list(EVENTS), rows,
+            ["order", "components", "motions taught"] + list(OUTCOMES) + ["correct by motion"] + list(EVENTS), rows,
             caption=(f"LASA-{len(shapes)} in one library: {s.lasa_train} of the {N_DEMOS} demonstrations of every "
                      f"shape taught in one random order, the other {N_DEMOS - s.lasa_train} recognized as whole "
                      f"motions (fractions of {len(shapes) * (N_DEMOS - s.lasa_train)}); {len(shapes)} shapes. "
+                     "Motions taught: the distinct motions among the taught demonstrations (a Multi_Models shape is "
+                     "two or three motions from different starting points, drake_skills.data.lasa.lasa_motions; "
+                     "one of them may be held out whole). Correct by motion: correct, or \"unknown\" for a "
+                     "held-out demonstration of a motion no taught demonstration draws. "
                      + _EVENTS_CAPTION.format("shape")))
         counts = {k: [t.per_shape[k] for t in trials] for k in shapes}
         held = {k: np.sum([t.per_shape_counts[k] for t in trials], axis=0) for k in shapes}
+        motions_of = {k: [t.per_shape_motions[k] for t in trials] for k in shapes}
         rep.tables["lasa_shapes"] = Table(
-            ["shape", "components (mean over orders)", "orders with exactly 1"] + list(OUTCOMES),
-            [[k, float(np.mean(v)), sum(x == 1 for x in v), *_fractions(held[k])] for k, v in counts.items()],
+            ["shape", "components (mean over orders)", "orders with exactly 1", "orders with 1 per motion taught"]
+            + list(OUTCOMES),
+            [[k, float(np.mean(v)), sum(x == 1 for x in v), sum(x == m for x, m in zip(v, motions_of[k])),
+              *_fractions(held[k])] for k, v in counts.items()],
             caption=("Components per LASA shape: those whose taught demonstrations are mostly of the shape. The "
-                     "Multi_Models shapes are multi-model motions, not single patterns (the dataset's naming), so more "
-                     "than one component is a fair answer for them; 0: the shape's demonstrations joined another shape's "
-                     "component. Outcomes: the shape's held-out demonstrations over all orders (a Multi_Models shape "
-                     "reuses other shapes' patterns, e.g. a trapezoid: its motion is then taught under two names)."))
+                     "Multi_Models shapes are multi-model motions, not single patterns (the dataset's naming), so "
+                     "more than one component is a fair answer for them; 0: the shape's demonstrations joined another "
+                     "shape's component. 1 per motion taught: as many components as the order taught the shape "
+                     "motions (lasa_motions). Outcomes: the shape's held-out demonstrations over all orders (a "
+                     "Multi_Models shape reuses other shapes' patterns, e.g. a trapezoid: its motion is then taught "
+                     "under two names)."))
         single = [k for k in shapes if not is_multi_model(k)]
         single_fr = _fractions(np.sum([held[k] for k in single], axis=0)) if single else [None] * len(OUTCOMES)
         if single and len(single) < len(shapes):
@@ -343,8 +372,10 @@ def evaluate_scale(settings: ScaleSettings | None = None, *, progress: bool = Tr
                 f" The {len(single)} single-pattern shapes (all but Multi_Models) over all orders: "
                 + ", ".join(f"{o} {v:.3f}" for o, v in zip(OUTCOMES, single_fr)) + ".")
         summary["lasa"] = {"shapes": len(shapes), "components_mean": lasa_components,
-                           "components_per_shape": counts,
+                           "components_per_shape": counts, "motions_per_shape": motions_of,
                            **{f"{k}_mean": float(v) for k, v in zip(OUTCOMES, fr.mean(axis=0))},
+                           "motions_taught_mean": float(motions.mean()),
+                           **{f"by_motion_{k}_mean": float(v) for k, v in zip(OUTCOMES, fm.mean(axis=0))},
                            "single_pattern_shapes": len(single),
                            **{f"single_pattern_{k}": v for k, v in zip(OUTCOMES, single_fr)},
                            "components_per_order": comps.tolist(),

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from drake_skills.data.demonstration import Demonstration
-from drake_skills.data.lasa import DEFAULT_LETTERS, LASA_SHAPES, lasa_workspace, load_lasa
+from drake_skills.data.lasa import DEFAULT_LETTERS, LASA_SHAPES, lasa_motions, lasa_workspace, load_lasa
 
 
 def test_default_letters_are_five_lasa_shapes():
@@ -55,3 +55,37 @@ def test_lasa_rejects_bad_arguments():
         lasa_workspace([])
     with pytest.raises(ValueError, match="not a Demonstration"):
         lasa_workspace([np.zeros((5, 2))])
+
+
+def test_lasa_motions_are_one_per_single_pattern_shape_and_two_or_three_per_multi_model_shape():
+    """35 motions in the 30 shapes: Multi_Models_1 drawn from 3 starting points, the other Multi_Models from 2."""
+    demos = load_lasa(LASA_SHAPES)
+    motions = lasa_motions(demos)
+    assert len(motions) == len(demos) and len(set(motions)) == 35
+    for shape in LASA_SHAPES:
+        mine = [m for m, d in zip(motions, demos) if d.task == shape]
+        if shape.startswith("Multi_Models"):
+            assert len(set(mine)) == (3 if shape == "Multi_Models_1" else 2), (shape, mine)
+            assert mine[0] == f"{shape}#1" and all(m.startswith(shape + "#") for m in mine)
+        else:
+            assert set(mine) == {shape}
+    # a motion's starts chain within the gap; two motions of a shape start further apart than it
+    mm1 = [d for d in demos if d.task == "Multi_Models_1"]
+    lab = [m for m, d in zip(motions, demos) if d.task == "Multi_Models_1"]
+    starts = np.array([d.human[0] for d in mm1])
+    for i in range(len(mm1)):
+        for j in range(len(mm1)):
+            if lab[i] != lab[j]:
+                assert np.linalg.norm(starts[i] - starts[j]) > 15.0
+
+
+def test_lasa_motions_numbers_motions_in_the_order_of_their_first_demonstration_and_checks_its_input():
+    demos = load_lasa(["Multi_Models_2"])             # starts: 4 at x ~ -32 mm, then 3 at x ~ 17 mm
+    assert lasa_motions(demos) == ("Multi_Models_2#1",) * 4 + ("Multi_Models_2#2",) * 3
+    assert lasa_motions(demos[::-1]) == ("Multi_Models_2#1",) * 3 + ("Multi_Models_2#2",) * 4
+    assert lasa_motions(demos[:1]) == ("Multi_Models_2",)
+    assert lasa_motions(demos, gap=100.0) == ("Multi_Models_2",) * 7   # one chain at a gap wider than 49 mm
+    with pytest.raises(ValueError, match="gap"):
+        lasa_motions(demos, gap=0.0)
+    with pytest.raises(ValueError, match="demos\\[1\\]"):
+        lasa_motions([demos[0], "not a demo"])

@@ -128,3 +128,32 @@ def test_with_a_multi_model_shape_the_single_pattern_figures_leave_it_out():
     assert only.summary["lasa"]["single_pattern_shapes"] == 0
     assert all(only.summary["lasa"][f"single_pattern_{k}"] is None for k in OUTCOMES)
     json.dumps(only.summary, allow_nan=False)
+
+
+def test_by_motion_a_held_out_motion_never_taught_is_rightly_unknown():
+    """Multi_Models_1 (3 motions) with one demonstration taught: the held-out demonstrations of its other two motions
+    are "unknown", which counts as correct by motion and only there; nothing else moves between the counts."""
+    s = replace(ScaleSettings.quick(seed=3), lasa_shapes=("Angle", "Multi_Models_1"), lasa_train=1, lasa_orders=3,
+                sizes=(10,), orders=("random",))
+    rep = evaluate_scale(s, progress=False, figures=False)
+    summary = rep.summary["lasa"]
+    t = rep.tables["lasa"]
+    assert t.column("motions taught") == [2, 2, 2, 2.0] and summary["motions_taught_mean"] == 2.0
+    assert summary["motions_per_shape"] == {"Angle": [1, 1, 1], "Multi_Models_1": [1, 1, 1]}
+    assert summary["components_per_shape"] == summary["motions_per_shape"]
+    # at least 4 of Multi_Models_1's 6 held-out demonstrations draw a motion not taught (its motions have 3, 2, 2)
+    assert summary["unknown_mean"] >= 4 / 12 - 1e-12 and summary["wrong_mean"] == 0.0
+    assert summary["by_motion_correct_mean"] == pytest.approx(1.0, abs=1e-12)
+    assert t.column("correct by motion")[-1] == pytest.approx(summary["by_motion_correct_mean"], abs=1e-12)
+    moved = summary["by_motion_correct_mean"] - summary["correct_mean"]
+    assert moved == pytest.approx(summary["unknown_mean"] - summary["by_motion_unknown_mean"], abs=1e-12)
+    for k in ("wrong", "undecided"):
+        assert summary[f"by_motion_{k}_mean"] == summary[f"{k}_mean"]
+    shapes = rep.tables["lasa_shapes"]
+    assert shapes.column("orders with 1 per motion taught") == [3, 3]
+
+
+def test_single_pattern_shapes_count_the_same_by_motion(report):
+    s = report.summary["lasa"]
+    assert s["motions_taught_mean"] == 6.0
+    assert [s[f"by_motion_{k}_mean"] for k in OUTCOMES] == [s[f"{k}_mean"] for k in OUTCOMES]
