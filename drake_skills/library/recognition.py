@@ -220,6 +220,8 @@ class RecognitionMixin:
         contested = ()
         if status == "skill":
             contested = self._contested(best)
+            if contested and shares is None and contested != (ids[best],):
+                contested = self._within_reach(contested, d2, dof)
             if contested:
                 status, comp = "undecided", None   # the teacher named these differently: not acted on
         blind = ()
@@ -258,6 +260,20 @@ class RecognitionMixin:
         if hit is None:
             hit = memo[best] = self._contested_now(best)
         return hit
+
+    def _within_reach(self, contested: tuple[int, ...], d2: np.ndarray, dof) -> tuple[int, ...]:
+        """Of the skills taught as other tasks near the best one (``contested``, ids), those a whole motion (or a
+        given fraction) may still be: its distance to them at most ``other_task_reach`` times their novelty limit.
+
+        The reach the components' means are judged on (merge limits apart), applied to the motion itself: beyond
+        twice a skill's limit the motion is not that skill's, and the neighbour does not hold the answer. There
+        every component is scored (``d2`` of all rows); a beginning, whose candidates may be pruned, keeps every
+        contest (:meth:`_decide`). A deviation from the paper, as the reach is.
+        """
+        cfg = self.config
+        rows = np.array([self._components.index(c) for c in contested], int)
+        limit = cfg.other_task_reach * chi2_ppf(cfg.novelty_quantile, np.broadcast_to(dof, d2.shape)[rows])
+        return tuple(c for c, near in zip(contested, d2[rows] <= limit) if near)
 
     def _contested_now(self, best: int) -> tuple[int, ...]:
         cfg = self.config
@@ -711,6 +727,7 @@ class _Path:
         """``n`` samples equally spaced along the path (:func:`~drake_skills.promp.preprocessing.resample_by_arc_length`)."""
         grid = np.linspace(0.0, self.s[-1], int(n))
         return np.stack([np.interp(grid, self.s, self.vertices[:, d]) for d in range(self.vertices.shape[1])], axis=1)
+
 
 
 def undecided_reason(rec: Recognition) -> str:

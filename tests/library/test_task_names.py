@@ -359,3 +359,54 @@ def test_a_skill_taught_under_two_names_is_not_acted_on_under_the_loglik_test_to
     base = _library(("a", "b", "c"), novelty_test="loglik")
     lib, r0, _ = _placed(base, 0.5)
     assert lib._contested(r0) == ()                                         # no reach under loglik
+
+
+def test_a_whole_motion_beyond_the_reach_of_the_neighbours_limit_is_not_held_by_it():
+    """other_task_reach 1. Skill a's component placed at d^2 15 from a motion, skill b's one merge limit from a's
+    (two-sample), so the means contest: with b to the side, the motion lies within b's novelty limit and stays
+    undecided; with b on the far side, beyond it, and it is answered (the contest released). A beginning keeps the
+    contest (a beginning's candidates may be pruned, so it is not judged by its distances)."""
+    from drake_skills.library.algorithm import ComponentModel, Components
+    from drake_skills.library.novelty import chi2_ppf
+    from drake_skills.promp.basis import ridge_weights
+
+    base = _library(("a", "b", "c"))
+    cfg = replace(base.config, other_task_reach=1.0)
+    q = synthetic_demo(0, np.random.default_rng(50)).human
+    lib, r0, k1 = _placed(base, 0.99, config=cfg)
+    h = lib.n_human
+    metric = lib._metric()
+    items = list(lib._components.items)
+    r1 = lib._components.index(k1)
+    c0, c1 = items[r0], items[r1]
+    y = lib._normalized(q).resample(lib.config.n_samples)
+    zq = metric.whiten(ridge_weights(y, lib.config.basis_human, lib.config.ridge))
+    e, w = np.eye(h)[0], np.eye(h)[1]
+    z0 = zq + e * np.sqrt(15.0 * (1.0 + 1.0 / c0.support))            # the motion at d^2 15 from a's component
+    t = np.sqrt(0.99 * chi2_ppf(cfg.merge_quantile, h) * (1.0 / c0.support + 1.0 / c1.support))
+    reach = 1.0 * chi2_ppf(cfg.novelty_quantile, h)
+
+    def moved(c, z):
+        mean = c.cluster.mean.copy()
+        mean[:h] = metric.chol @ z
+        return ComponentModel(c.id, c.created, replace(c.cluster, mean=mean), c.subclusters)
+
+    items[r0] = moved(c0, z0)
+    for where, held in ((w, True), (e, False)):                        # to the side; away from the motion
+        items[r1] = moved(c1, z0 + t * where)
+        lib._components = Components.of(items, h)     # a new version: the memos start again
+        assert lib._contested(r0) == (k1,)             # the means lie within the reach either way
+        rec = lib.recognize(q, observed_fraction=1.0)
+        d2_b = float(rec.mahalanobis_sq[r1])
+        assert rec.mahalanobis_sq[r0] == pytest.approx(15.0, rel=1e-9)
+        assert (d2_b <= reach) == held, (held, d2_b, reach)        # the geometry the test means
+        assert rec.best == r0 and rec.posterior[r0] >= 1.0 - cfg.decision_risk, rec.posterior
+        assert rec.contested == ((k1,) if held else ()), (held, rec.contested)
+        assert rec.status == ("undecided" if held else "skill") and rec.component == (None if held else c0.id)
+    begin = lib.recognize(q[: int(0.8 * len(q))])
+    # the same distances judged as a beginning's (``shares`` given): the contest is kept
+    as_begin = lib._decide(rec.log_likelihoods, rec.mahalanobis_sq, rec.dof, np.full(len(items), 0.5),
+                           shares=np.full(len(items), 0.5))
+    assert as_begin.contested == (k1,) and as_begin.status == "undecided"
+    begin = lib.recognize(q[: int(0.8 * len(q))])     # and a real beginning of the motion: near b, contested
+    assert begin.best == r0 and begin.contested == (k1,) and begin.status == "undecided"
