@@ -27,10 +27,13 @@ def fastest_cpu_ms(fn, items, batches: int) -> float:
 
     On a machine shared with other work the wall clock's median moves by 1.5x between runs of the same
     code; the process's CPU time of a whole pass, at its fastest, moves by a few percent. One warm-up pass.
+    The process's CPU time counts every thread: run it with one BLAS thread (``OPENBLAS_NUM_THREADS=1``).
     """
     items = list(items)
-    if not items or batches < 1:
-        raise ValueError(f"fastest_cpu_ms needs items and batches >= 1, got {len(items)} and {batches}")
+    if not items:
+        raise ValueError("fastest_cpu_ms needs at least one item to time")
+    if batches < 1:
+        raise ValueError(f"fastest_cpu_ms needs batches >= 1, got {batches}")
     for x in items:
         fn(x)
     best = np.inf

@@ -729,7 +729,6 @@ class _Path:
         return np.stack([np.interp(grid, self.s, self.vertices[:, d]) for d in range(self.vertices.shape[1])], axis=1)
 
 
-
 def undecided_reason(rec: Recognition) -> str:
     """Why a recognition is "undecided", in a few words ("" for any other status).
 

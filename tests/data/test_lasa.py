@@ -84,7 +84,7 @@ def test_lasa_motions_numbers_motions_in_the_order_of_their_first_demonstration_
     assert lasa_motions(demos) == ("Multi_Models_2#1",) * 4 + ("Multi_Models_2#2",) * 3
     assert lasa_motions(demos[::-1]) == ("Multi_Models_2#1",) * 3 + ("Multi_Models_2#2",) * 4
     assert lasa_motions(demos[:1]) == ("Multi_Models_2",)
-    assert lasa_motions(demos, gap=100.0) == ("Multi_Models_2",) * 7   # one chain at a gap wider than 49 mm
+    assert lasa_motions(demos, gap=100.0) == ("Multi_Models_2",) * 7   # one chain at a gap wider than its 47.6 mm
     with pytest.raises(ValueError, match="gap"):
         lasa_motions(demos, gap=0.0)
     with pytest.raises(ValueError, match="demos\\[1\\]"):

@@ -362,18 +362,19 @@ def test_a_skill_taught_under_two_names_is_not_acted_on_under_the_loglik_test_to
 
 
 def test_a_whole_motion_beyond_the_reach_of_the_neighbours_limit_is_not_held_by_it():
-    """other_task_reach 1. Skill a's component placed at d^2 15 from a motion, skill b's one merge limit from a's
-    (two-sample), so the means contest: with b to the side, the motion lies within b's novelty limit and stays
-    undecided; with b on the far side, beyond it, and it is answered (the contest released). A beginning keeps the
-    contest (a beginning's candidates may be pruned, so it is not judged by its distances)."""
+    """The default reach (2). Skill a's component placed at d^2 25 from a motion, skill b's 1.99 merge limits from a's
+    (two-sample), so the means contest. With b where the motion lies 1.5 times b's novelty limit from it (beyond the
+    limit, within the reach) the answer stays undecided; with b on the far side, beyond twice the limit, it is answered
+    (the contest released). A beginning keeps the contest (a beginning's candidates may be pruned)."""
     from drake_skills.library.algorithm import ComponentModel, Components
     from drake_skills.library.novelty import chi2_ppf
     from drake_skills.promp.basis import ridge_weights
 
     base = _library(("a", "b", "c"))
-    cfg = replace(base.config, other_task_reach=1.0)
+    cfg = base.config
+    assert cfg.other_task_reach == 2.0
     q = synthetic_demo(0, np.random.default_rng(50)).human
-    lib, r0, k1 = _placed(base, 0.99, config=cfg)
+    lib, r0, k1 = _placed(base, 1.99)
     h = lib.n_human
     metric = lib._metric()
     items = list(lib._components.items)
@@ -382,9 +383,15 @@ def test_a_whole_motion_beyond_the_reach_of_the_neighbours_limit_is_not_held_by_
     y = lib._normalized(q).resample(lib.config.n_samples)
     zq = metric.whiten(ridge_weights(y, lib.config.basis_human, lib.config.ridge))
     e, w = np.eye(h)[0], np.eye(h)[1]
-    z0 = zq + e * np.sqrt(15.0 * (1.0 + 1.0 / c0.support))            # the motion at d^2 15 from a's component
-    t = np.sqrt(0.99 * chi2_ppf(cfg.merge_quantile, h) * (1.0 / c0.support + 1.0 / c1.support))
-    reach = 1.0 * chi2_ppf(cfg.novelty_quantile, h)
+    r = np.sqrt(25.0 * (1.0 + 1.0 / c0.support))
+    z0 = zq + r * e                                                     # the motion at d^2 25 from a's component
+    t = np.sqrt(1.99 * chi2_ppf(cfg.merge_quantile, h) * (1.0 / c0.support + 1.0 / c1.support))
+    limit = chi2_ppf(cfg.novelty_quantile, h)
+    cb = 1.0 + 1.0 / c1.support
+    # |q - b|^2 = r^2 + t^2 + 2 r t cos(theta) for b = a + t (cos(theta) e + sin(theta) w): 1.5 limits of b's
+    cos = (1.5 * limit * cb - r * r - t * t) / (2.0 * r * t)
+    assert -1.0 < cos < 1.0
+    within = cos * e + np.sqrt(1.0 - cos * cos) * w
 
     def moved(c, z):
         mean = c.cluster.mean.copy()
@@ -392,21 +399,21 @@ def test_a_whole_motion_beyond_the_reach_of_the_neighbours_limit_is_not_held_by_
         return ComponentModel(c.id, c.created, replace(c.cluster, mean=mean), c.subclusters)
 
     items[r0] = moved(c0, z0)
-    for where, held in ((w, True), (e, False)):                        # to the side; away from the motion
+    for where, held in ((within, True), (e, False)):                   # within the reach; away from the motion
         items[r1] = moved(c1, z0 + t * where)
         lib._components = Components.of(items, h)     # a new version: the memos start again
         assert lib._contested(r0) == (k1,)             # the means lie within the reach either way
         rec = lib.recognize(q, observed_fraction=1.0)
         d2_b = float(rec.mahalanobis_sq[r1])
-        assert rec.mahalanobis_sq[r0] == pytest.approx(15.0, rel=1e-9)
-        assert (d2_b <= reach) == held, (held, d2_b, reach)        # the geometry the test means
-        assert rec.best == r0 and rec.posterior[r0] >= 1.0 - cfg.decision_risk, rec.posterior
+        assert rec.mahalanobis_sq[r0] == pytest.approx(25.0, rel=1e-9)
+        if held:    # past b's own limit (a test of the limit alone would release it), within twice it
+            assert d2_b == pytest.approx(1.5 * limit, rel=1e-9)
+        else:
+            assert d2_b > 2.0 * limit, (d2_b, limit)
+        assert rec.best == c0.id and rec.posterior[r0] >= 1.0 - cfg.decision_risk, rec.posterior
         assert rec.contested == ((k1,) if held else ()), (held, rec.contested)
         assert rec.status == ("undecided" if held else "skill") and rec.component == (None if held else c0.id)
-    begin = lib.recognize(q[: int(0.8 * len(q))])
     # the same distances judged as a beginning's (``shares`` given): the contest is kept
     as_begin = lib._decide(rec.log_likelihoods, rec.mahalanobis_sq, rec.dof, np.full(len(items), 0.5),
                            shares=np.full(len(items), 0.5))
     assert as_begin.contested == (k1,) and as_begin.status == "undecided"
-    begin = lib.recognize(q[: int(0.8 * len(q))])     # and a real beginning of the motion: near b, contested
-    assert begin.best == r0 and begin.contested == (k1,) and begin.status == "undecided"
