@@ -175,8 +175,8 @@ def lasa_motions(demos: Sequence[Demonstration], gap: float = MOTION_GAP_MM) -> 
     LASA's four ``Multi_Models`` shapes are "multi-model" by the data set's naming: their seven demonstrations are
     drawn from two or three starting points, each a different motion to the same end. A motion here is a set of one
     shape's demonstrations whose starting points chain within ``gap`` of each other (single linkage). In the data
-    set the starts of a single-pattern shape lie within 6.1 mm of each other, the motions of a ``Multi_Models`` shape
-    22.8 mm or more apart; 15 mm finds 35 motions in the 30 shapes (``Multi_Models_1`` 3, the other three 2 each).
+    set the starts of a single-pattern shape chain within 6.1 mm (its farthest pair, in Line, 17.6 mm apart), the
+    motions of a ``Multi_Models`` shape lie 22.8 mm or more apart; 15 mm finds 35 motions in the 30 shapes (``Multi_Models_1`` 3, the other three 2 each).
     ``k`` counts a shape's motions from 1 in the order of their first demonstration in ``demos``.
 
     Returns

@@ -187,8 +187,10 @@ class LibraryConfig:
     #: scale is more data than prior (before, with a task or two seen once, every pair lies within it; the
     #: rule of ``single_demo_quantile`` keeps such a library safe). A whole motion (or one at a given
     #: fraction) further than this many times such a neighbour's novelty limit is not the neighbour's, and
-    #: it does not hold the answer (since 2026-12-07: LASA-30 0.930 -> 0.937 correct, 0 wrong; no answer
-    #: changed on the constructions above or on LASA's halves); a beginning keeps every contest. 0 turns it off.
+    #: it does not hold the answer (since 2026-12-07; compared with the limit alone, which gave a wrong answer
+    #: on the development constructions, not with other multiples: no answer changed on the constructions or
+    #: LASA's halves, LASA-30 0.930 -> 0.937 correct, 0 wrong). A beginning keeps every contest (the
+    #: controller's decision at rest recognizes the whole motion). 0 turns it off.
     other_task_reach: float = 2.0
     #: Two components taught as the same task (each one's main task name, not mixed by
     #: ``mixed_task_share``) merge within this many times the merge limit, and the halves of such a

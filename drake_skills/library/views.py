@@ -220,9 +220,9 @@ class Recognition:
     #: Why a motion one skill explains is "undecided" by the task names it was taught under
     #: (``Cluster.tasks``): ``(best,)`` when that skill was taught under more than one task name
     #: (``LibraryConfig.mixed_task_share``), else the ids of the skills taught as another task that lie
-    #: near it (``LibraryConfig.other_task_reach``; for a whole motion, those within that many times their
-    #: novelty limit of it). The teacher called these motions different tasks, so acting on one could be the
-    #: wrong one. Empty otherwise.
+    #: near it (``LibraryConfig.other_task_reach``; for a whole motion or one at a given fraction, only those
+    #: within that many times their novelty limit of it; a beginning keeps them all). The teacher called these
+    #: motions different tasks, so acting on one could be the wrong one. Empty otherwise.
     contested: tuple[int, ...] = ()
     #: For a beginning (the phase estimated): the posterior probability that it begins a skill the library was
     #: never taught (``LibraryConfig.new_skill_weight``; the population of all demonstrations as that skill's
