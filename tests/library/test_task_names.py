@@ -417,3 +417,13 @@ def test_a_whole_motion_beyond_the_reach_of_the_neighbours_limit_is_not_held_by_
     as_begin = lib._decide(rec.log_likelihoods, rec.mahalanobis_sq, rec.dof, np.full(len(items), 0.5),
                            shares=np.full(len(items), 0.5))
     assert as_begin.contested == (k1,) and as_begin.status == "undecided"
+
+
+def test_an_answer_that_is_not_a_skill_names_no_contest():
+    """Only a motion one skill explains is judged by the names: an unknown or plainly undecided one has an empty
+    tuple (not None) in ``contested``, and its reason says nothing of task names."""
+    lib = _library(("a", "b", "c"))
+    far = synthetic_demo(0, np.random.default_rng(50)).human * 3.0 + 5.0     # no skill explains it
+    rec = lib.recognize(far, workspace=WORKSPACE, observed_fraction=1.0)
+    assert rec.status == "unknown" and rec.contested == () and isinstance(rec.contested, tuple)
+    assert undecided_reason(rec) == ""
