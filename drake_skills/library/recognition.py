@@ -89,7 +89,10 @@ class RecognitionMixin:
             ``LibraryConfig.single_demo_quantile`` (0.9), not ``novelty_quantile``; between the
             two it cannot be the answer but still takes its share of the posterior (it is not
             ruled out), so a rival is answered only if it is ``1 - decision_risk`` probable
-            against it too.
+            against it too. A skill near one taught as another task is not acted on
+            (``Recognition.contested``); with a fraction given, only while the motion lies within
+            ``other_task_reach`` of that neighbour's novelty limit, without one (a beginning) always.
+            So pass 1 for a motion you know is complete, as the Drake gating does at rest.
         workspace : Workspace, optional
         normalized : bool
             ``human`` is already in the library's normalized units (Eq. 14 applied).
