@@ -45,10 +45,12 @@ def run(quick: bool = False, config=None) -> list[dict]:
         lib.recognize(prefixes[i[0] % n], normalized=True)
         i[0] += 1
 
-    def recondition(i=[0], full=False):
-        y = prefixes[i[0] % n]
+    def recondition_one(y, full=False):
         f = lib.estimate_phase(y, k0, normalized=True)
         lib.predict_robot(y, f, normalized=True, component=k0, variances_only=not full)
+
+    def recondition(i=[0], full=False):
+        recondition_one(prefixes[i[0] % n], full)
         i[0] += 1
 
     def one(y):
@@ -76,11 +78,6 @@ def run(quick: bool = False, config=None) -> list[dict]:
              "value": round(median_ms(both, repeats), 3), "unit": "ms", "goal": "<= 2 ms at K=5",
              "notes": "both of the above for one prefix"}]
     passes = 3 if quick else 30
-
-    def recondition_one(y):
-        f = lib.estimate_phase(y, k0, normalized=True)
-        lib.predict_robot(y, f, normalized=True, component=k0, variances_only=True)
-
     for name, fn in (("recognize a prefix", lambda y: lib.recognize(y, normalized=True)),
                      ("estimate_phase + predict_robot", recondition_one),
                      ("recognize + phase + predict", one)):
