@@ -155,12 +155,9 @@ def lasa_workspace(demos: Sequence[Demonstration], scale: float = 10.0) -> Works
     workspace : Workspace
         Per-axis min and max over every sample of every demonstration.
     """
-    demos = list(demos)
+    demos = _demonstrations(demos)
     if not demos:
         raise ValueError("lasa_workspace needs at least one demonstration")
-    for i, d in enumerate(demos):
-        if not isinstance(d, Demonstration):
-            raise ValueError(f"demos[{i}] is a {type(d).__name__}, not a Demonstration")
     arrays = [as_finite_array(d.human, f"demos[{i}].human", ndim=2) for i, d in enumerate(demos)]
     return Workspace.from_calibration(arrays, scale=scale)
 
@@ -176,7 +173,8 @@ def lasa_motions(demos: Sequence[Demonstration], gap: float = MOTION_GAP_MM) -> 
     drawn from two or three starting points, each a different motion to the same end. A motion here is a set of one
     shape's demonstrations whose starting points chain within ``gap`` of each other (single linkage). In the data
     set the starts of a single-pattern shape chain within 6.1 mm (its farthest pair, in Line, 17.6 mm apart), the
-    motions of a ``Multi_Models`` shape lie 22.8 mm or more apart; 15 mm finds 35 motions in the 30 shapes (``Multi_Models_1`` 3, the other three 2 each).
+    motions of a ``Multi_Models`` shape lie 22.8 mm or more apart; 15 mm finds 35 motions in the 30 shapes
+    (``Multi_Models_1`` 3, the other three 2 each).
     ``k`` counts a shape's motions from 1 in the order of their first demonstration in ``demos``.
 
     Returns
@@ -186,13 +184,11 @@ def lasa_motions(demos: Sequence[Demonstration], gap: float = MOTION_GAP_MM) -> 
     """
     from scipy.cluster.hierarchy import fcluster, linkage
 
-    demos = list(demos)
+    demos = _demonstrations(demos)
     if not gap > 0:
         raise ValueError(f"gap must be > 0, got {gap!r}")
     by_shape: dict[str, list[int]] = {}
     for i, d in enumerate(demos):
-        if not isinstance(d, Demonstration):
-            raise ValueError(f"demos[{i}] is a {type(d).__name__}, not a Demonstration")
         by_shape.setdefault(d.task, []).append(i)
     out: list[str] = [""] * len(demos)
     for shape, idx in by_shape.items():
@@ -204,3 +200,12 @@ def lasa_motions(demos: Sequence[Demonstration], gap: float = MOTION_GAP_MM) -> 
         for i, lab in zip(idx, labels):
             out[i] = shape if len(first) == 1 else f"{shape}#{first[int(lab)]}"
     return tuple(out)
+
+
+def _demonstrations(demos: Sequence[Demonstration]) -> list[Demonstration]:
+    """``demos`` as a list, each checked to be a :class:`Demonstration` (the error names the first that is not)."""
+    demos = list(demos)
+    for i, d in enumerate(demos):
+        if not isinstance(d, Demonstration):
+            raise ValueError(f"demos[{i}] is a {type(d).__name__}, not a Demonstration")
+    return demos
